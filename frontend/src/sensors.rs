@@ -1,0 +1,115 @@
+//! Sensor records of a mission and the sensor mounting.
+//!
+//! Frames: the *vehicle* frame is x forward, y to port (left), z up, so that
+//! a positive yaw turns the vehicle counter-clockwise seen from above and all
+//! 2D maths is right-handed. Readers of logs in other conventions (NED, x
+//! forward / y starboard) convert on reading. The *world* frame is a local
+//! metric frame (x east, y north unless stated by the reader). All stamps are
+//! absolute seconds (Unix time for real logs); angles are in radians.
+
+use echofield_graph::Se2;
+use nalgebra::{Matrix3, Vector3};
+use serde::{Deserialize, Serialize};
+
+/// One MSIS beam: an echo-intensity profile along one transducer angle.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SonarBeam {
+    /// Time the beam was received, in seconds.
+    pub stamp_s: f64,
+    /// Transducer angle in the sonar head frame, radians, counter-clockwise
+    /// from the head's x axis. Not necessarily wrapped.
+    pub angle_rad: f64,
+    /// Range length of one bin, in metres.
+    pub bin_size_m: f64,
+    /// Range of the start of bin 0, in metres (0 for most heads). Bin `i`
+    /// covers `[first_bin_range_m + i·bin_size_m, first_bin_range_m + (i+1)·bin_size_m)`.
+    pub first_bin_range_m: f64,
+    /// Echo intensities 0-255, one per bin, nearest first.
+    pub intensities: Vec<u8>,
+}
+
+impl SonarBeam {
+    /// Range of the far end of bin `i` (the paper's eq. 3 uses the endpoint).
+    pub fn bin_end_range_m(&self, i: usize) -> f64 {
+        self.first_bin_range_m + (i as f64 + 1.0) * self.bin_size_m
+    }
+
+    /// Range of the centre of bin `i`.
+    pub fn bin_centre_range_m(&self, i: usize) -> f64 {
+        self.first_bin_range_m + (i as f64 + 0.5) * self.bin_size_m
+    }
+
+    /// The far range of the last bin.
+    pub fn max_range_m(&self) -> f64 {
+        self.bin_end_range_m(self.intensities.len().saturating_sub(1))
+    }
+}
+
+/// A DVL velocity over ground, in the DVL instrument frame.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct DvlVelocity {
+    pub stamp_s: f64,
+    /// Velocity of the instrument over the bottom (x, y, z), m/s, in the DVL
+    /// frame (rotate with `SensorMounting::vehicle_from_dvl` to reach the
+    /// vehicle frame).
+    pub velocity_mps: Vector3<f64>,
+    /// False when the instrument flagged the sample (no bottom lock, bad
+    /// status); invalid samples carry no information and are skipped.
+    pub valid: bool,
+    /// Velocity covariance in (m/s)², when the log provides one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub covariance: Option<Matrix3<f64>>,
+}
+
+/// An attitude sample from the MRU / AHRS / compass.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Attitude {
+    pub stamp_s: f64,
+    pub roll_rad: f64,
+    pub pitch_rad: f64,
+    /// Heading of the vehicle x axis in the world frame, counter-clockwise
+    /// positive (see the module doc for frame conventions).
+    pub yaw_rad: f64,
+    /// Yaw rate in rad/s when the unit provides it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub yaw_rate_radps: Option<f64>,
+}
+
+/// A ground-truth vehicle pose (DGPS, simulator), `world_from_vehicle`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct GroundTruthPose {
+    pub stamp_s: f64,
+    pub world_from_vehicle: Se2,
+}
+
+/// Where the sensors sit on the vehicle (2D: x, y in metres, yaw in rad).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SensorMounting {
+    /// Pose of the sonar head frame in the vehicle frame `[x, y, yaw]`.
+    pub vehicle_from_sonar: Se2,
+    /// Pose of the DVL instrument frame in the vehicle frame `[x, y, yaw]`.
+    pub vehicle_from_dvl: Se2,
+}
+
+impl Default for SensorMounting {
+    fn default() -> Self {
+        Self {
+            vehicle_from_sonar: Se2::identity(),
+            vehicle_from_dvl: Se2::identity(),
+        }
+    }
+}
+
+/// A whole mission in memory: every sensor stream sorted by time.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Mission {
+    /// Human-readable name (file stem, scenario name).
+    pub name: String,
+    pub mounting: SensorMounting,
+    pub beams: Vec<SonarBeam>,
+    pub dvl: Vec<DvlVelocity>,
+    pub attitude: Vec<Attitude>,
+    /// Empty when the mission has no ground truth.
+    pub ground_truth: Vec<GroundTruthPose>,
+}

@@ -1,0 +1,7 @@
+//! # echofield (library part of the command-line tool)
+//!
+//! Holds what the `echofield` binary and the end-to-end tests share: atomic
+//! output files and, in later stages, the SLAM pipeline that joins the
+//! frontend and the backend.
+
+pub mod output;
