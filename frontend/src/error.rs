@@ -1,0 +1,52 @@
+//! The frontend's error type. Variants carry enough context (which beam,
+//! rotation or config field) for a user to find the cause.
+
+use thiserror::Error;
+
+#[derive(Debug, Error, Clone, PartialEq)]
+#[non_exhaustive]
+pub enum FrontendError {
+    /// A configuration value is out of its documented range.
+    #[error("invalid config `{field}`: {message}")]
+    InvalidConfig { field: String, message: String },
+    /// An input record cannot be used (NaN, out-of-order time, empty beam).
+    #[error("{record}: field `{field}`: {message}")]
+    InvalidInput {
+        /// Which record: "beam 1234", "DVL sample 17", "rotation 5".
+        record: String,
+        field: String,
+        message: String,
+    },
+    /// Not enough data for the requested operation (too few ranges, no DVL
+    /// sample before a beam, an empty image).
+    #[error("{what}: {message}")]
+    InsufficientData { what: String, message: String },
+}
+
+impl FrontendError {
+    pub fn config(field: impl Into<String>, message: impl Into<String>) -> Self {
+        FrontendError::InvalidConfig {
+            field: field.into(),
+            message: message.into(),
+        }
+    }
+
+    pub fn input(
+        record: impl Into<String>,
+        field: impl Into<String>,
+        message: impl Into<String>,
+    ) -> Self {
+        FrontendError::InvalidInput {
+            record: record.into(),
+            field: field.into(),
+            message: message.into(),
+        }
+    }
+
+    pub fn insufficient(what: impl Into<String>, message: impl Into<String>) -> Self {
+        FrontendError::InsufficientData {
+            what: what.into(),
+            message: message.into(),
+        }
+    }
+}
