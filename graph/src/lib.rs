@@ -2,7 +2,9 @@
 //!
 //! The shared vocabulary of echofield: rigid transforms of the plane
 //! ([`Se2`], on nalgebra), pose graphs ([`PoseGraph`], on petgraph), the g2o
-//! and TORO file formats, and trajectory export (TUM, CSV, KITTI-style rows).
+//! and TORO file formats ([`io`]), trajectory export (TUM, CSV, KITTI-style
+//! rows) and seeded synthetic pose graphs for tests and benchmarks
+//! ([`synthetic`]).
 //!
 //! ```
 //! use echofield_graph::Se2;
@@ -13,8 +15,10 @@
 //! assert!((back.to_vector() - world_from_b.to_vector()).norm() < 1e-12);
 //! ```
 
+pub mod io;
 pub mod pose_graph;
 pub mod se2;
+pub mod synthetic;
 
 pub use pose_graph::{Edge, EdgeKind, GraphError, Node, NodeId, PoseGraph};
 pub use se2::{Se2, wrap_angle};

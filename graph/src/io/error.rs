@@ -1,0 +1,67 @@
+use crate::GraphError;
+use std::path::{Path, PathBuf};
+use thiserror::Error;
+
+/// Errors from reading or writing graph and trajectory files.
+#[derive(Debug, Error)]
+#[non_exhaustive]
+pub enum IoError {
+    #[error("{}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{}: the file holds no records", path.display())]
+    Empty { path: PathBuf },
+    /// A line whose content cannot be used.
+    #[error("{}:{line}: field `{field}`: {message}", path.display())]
+    Parse {
+        path: PathBuf,
+        /// 1-based line number.
+        line: usize,
+        field: String,
+        message: String,
+    },
+    /// A record that parses but does not fit the graph (duplicate vertex,
+    /// edge to a missing vertex, information not positive definite).
+    #[error("{}:{line}: {source}", path.display())]
+    Graph {
+        path: PathBuf,
+        line: usize,
+        #[source]
+        source: GraphError,
+    },
+}
+
+impl IoError {
+    pub(crate) fn parse(
+        path: &Path,
+        line: usize,
+        field: impl Into<String>,
+        message: impl Into<String>,
+    ) -> Self {
+        IoError::Parse {
+            path: path.to_path_buf(),
+            line,
+            field: field.into(),
+            message: message.into(),
+        }
+    }
+
+    pub(crate) fn graph(path: &Path, line: usize, source: GraphError) -> Self {
+        IoError::Graph {
+            path: path.to_path_buf(),
+            line,
+            source,
+        }
+    }
+
+    /// The 1-based line the error refers to, if any.
+    pub fn line(&self) -> Option<usize> {
+        match self {
+            IoError::Parse { line, .. } | IoError::Graph { line, .. } => Some(*line),
+            _ => None,
+        }
+    }
+}

@@ -1,0 +1,187 @@
+//! The g2o text format for 2D pose graphs.
+//!
+//! ```text
+//! VERTEX_SE2 id x y theta
+//! EDGE_SE2 from to dx dy dtheta I11 I12 I13 I22 I23 I33
+//! EDGE_SE2_PRIOR id x y theta I11 I12 I13 I22 I23 I33
+//! FIX id [id ...]
+//! ```
+//! Information matrices are given by their upper triangle, row by row, in the
+//! order `(x, y, θ)`. Edges read from a file are [`EdgeKind::Odometry`] when
+//! they join consecutive ids and [`EdgeKind::Loop`] otherwise; the kind only
+//! selects robust kernels in the backend.
+
+use super::IoError;
+use super::build::RawGraph;
+use super::lines::{Record, records};
+use crate::{Edge, EdgeKind, NodeId, PoseGraph, Se2};
+use nalgebra::Matrix3;
+use std::io::Write;
+use std::path::Path;
+
+const VERTEX_FIELDS: [&str; 4] = ["id", "x", "y", "theta"];
+const EDGE_FIELDS: [&str; 11] = [
+    "from", "to", "dx", "dy", "dtheta", "I11", "I12", "I13", "I22", "I23", "I33",
+];
+const PRIOR_FIELDS: [&str; 10] = [
+    "id", "x", "y", "theta", "I11", "I12", "I13", "I22", "I23", "I33",
+];
+
+/// Reads a g2o file.
+pub fn read_g2o(path: &Path) -> Result<PoseGraph, IoError> {
+    let text = std::fs::read_to_string(path).map_err(|source| IoError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    parse_g2o(&text, path)
+}
+
+/// Parses g2o text; `path` only names the source in errors. Without any
+/// `VERTEX_SE2` line, initial poses come from composing the edges (see
+/// `spanning_tree_poses` in this module's source: odometry chain first).
+pub fn parse_g2o(text: &str, path: &Path) -> Result<PoseGraph, IoError> {
+    let mut raw = RawGraph::default();
+    for record in records(text) {
+        match record.tag() {
+            "VERTEX_SE2" => {
+                record.expect_fields(path, &VERTEX_FIELDS)?;
+                let id = record.id(path, 1, "id")?;
+                raw.vertices.push((
+                    record.line,
+                    id,
+                    pose_fields(&record, path, 2, &VERTEX_FIELDS)?,
+                ));
+            }
+            "EDGE_SE2" => {
+                record.expect_fields(path, &EDGE_FIELDS)?;
+                let from = record.id(path, 1, "from")?;
+                let to = record.id(path, 2, "to")?;
+                let measurement = pose_fields(&record, path, 3, &EDGE_FIELDS)?;
+                let information = upper_triangle(&record, path, 6, &EDGE_FIELDS[5..])?;
+                let kind = relative_kind(from, to);
+                raw.edges.push((
+                    record.line,
+                    Edge::new(kind, from, to, measurement, information),
+                ));
+            }
+            "EDGE_SE2_PRIOR" => {
+                record.expect_fields(path, &PRIOR_FIELDS)?;
+                let id = record.id(path, 1, "id")?;
+                let measurement = pose_fields(&record, path, 2, &PRIOR_FIELDS)?;
+                let information = upper_triangle(&record, path, 5, &PRIOR_FIELDS[4..])?;
+                raw.edges.push((
+                    record.line,
+                    Edge::new(EdgeKind::Prior, id, id, measurement, information),
+                ));
+            }
+            "FIX" => {
+                if record.tokens.len() < 2 {
+                    return Err(IoError::parse(
+                        path,
+                        record.line,
+                        "id",
+                        "FIX needs at least one vertex id",
+                    ));
+                }
+                for index in 1..record.tokens.len() {
+                    raw.fixed.push((record.line, record.id(path, index, "id")?));
+                }
+            }
+            other => {
+                return Err(IoError::parse(
+                    path,
+                    record.line,
+                    "tag",
+                    format!(
+                        "unknown g2o record `{other}` (supported: VERTEX_SE2, EDGE_SE2, EDGE_SE2_PRIOR, FIX)"
+                    ),
+                ));
+            }
+        }
+    }
+    raw.into_graph(path)
+}
+
+/// Writes the graph as g2o: every node as `VERTEX_SE2`, `FIX` for fixed
+/// nodes, relative edges as `EDGE_SE2` and priors as `EDGE_SE2_PRIOR`.
+/// Numbers are written with Rust's shortest round-trip formatting, so
+/// reading the file back gives the same values bit for bit.
+pub fn write_g2o(graph: &PoseGraph, w: &mut dyn Write) -> std::io::Result<()> {
+    for node in graph.nodes() {
+        let p = &node.pose;
+        writeln!(
+            w,
+            "VERTEX_SE2 {} {} {} {}",
+            node.id,
+            p.x(),
+            p.y(),
+            p.theta()
+        )?;
+    }
+    for id in graph.fixed() {
+        writeln!(w, "FIX {id}")?;
+    }
+    for edge in graph.edges() {
+        let z = &edge.measurement;
+        let i = &edge.information;
+        let info = [
+            i[(0, 0)],
+            i[(0, 1)],
+            i[(0, 2)],
+            i[(1, 1)],
+            i[(1, 2)],
+            i[(2, 2)],
+        ];
+        if edge.kind == EdgeKind::Prior {
+            write!(w, "EDGE_SE2_PRIOR {}", edge.from)?;
+        } else {
+            write!(w, "EDGE_SE2 {} {}", edge.from, edge.to)?;
+        }
+        write!(w, " {} {} {}", z.x(), z.y(), z.theta())?;
+        for v in info {
+            write!(w, " {v}")?;
+        }
+        writeln!(w)?;
+    }
+    Ok(())
+}
+
+/// Edges between consecutive ids are odometry, others loop closures.
+pub(crate) fn relative_kind(from: NodeId, to: NodeId) -> EdgeKind {
+    if from.abs_diff(to) == 1 {
+        EdgeKind::Odometry
+    } else {
+        EdgeKind::Loop
+    }
+}
+
+/// Three consecutive pose fields starting at token `first`; `names` are
+/// the field names of the whole record (after the tag), used in errors.
+pub(crate) fn pose_fields(
+    record: &Record,
+    path: &Path,
+    first: usize,
+    names: &[&str],
+) -> Result<Se2, IoError> {
+    let names = &names[first - 1..first + 2];
+    let x = record.f64(path, first, names[0])?;
+    let y = record.f64(path, first + 1, names[1])?;
+    let theta = record.f64(path, first + 2, names[2])?;
+    Ok(Se2::new(x, y, theta))
+}
+
+/// An information matrix from its upper triangle `I11 I12 I13 I22 I23 I33`.
+fn upper_triangle(
+    record: &Record,
+    path: &Path,
+    first: usize,
+    names: &[&str],
+) -> Result<Matrix3<f64>, IoError> {
+    let mut v = [0.0; 6];
+    for (k, value) in v.iter_mut().enumerate() {
+        *value = record.f64(path, first + k, names[k])?;
+    }
+    Ok(Matrix3::new(
+        v[0], v[1], v[2], v[1], v[3], v[4], v[2], v[4], v[5],
+    ))
+}

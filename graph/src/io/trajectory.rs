@@ -1,0 +1,202 @@
+//! Trajectory files: one pose per row.
+//!
+//! - TUM: `stamp_s x y z qx qy qz qw` (space separated; z = 0 and the
+//!   quaternion is the yaw rotation about z), the format of the TUM RGB-D
+//!   benchmark tools and `evo`.
+//! - CSV: a header `stamp_s,x_m,y_m,theta_rad`, then one row per pose.
+//! - KITTI-style: the 3x4 matrix `[R | t]` of the 3D pose, row-major, twelve
+//!   numbers per row, no stamp (the KITTI odometry ground-truth layout).
+
+use super::IoError;
+use super::lines::records;
+use crate::{PoseGraph, Se2, wrap_angle};
+use std::io::Write;
+use std::path::Path;
+
+/// One stamped pose `world_from_vehicle`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TrajectoryPose {
+    pub stamp_s: f64,
+    pub pose: Se2,
+}
+
+/// The graph's nodes as a trajectory, in node order. Nodes without a stamp
+/// get their dense index as stamp.
+pub fn graph_trajectory(graph: &PoseGraph) -> Vec<TrajectoryPose> {
+    graph
+        .nodes()
+        .enumerate()
+        .map(|(i, n)| TrajectoryPose {
+            stamp_s: n.stamp_s.unwrap_or(i as f64),
+            pose: n.pose,
+        })
+        .collect()
+}
+
+/// Writes TUM rows.
+pub fn write_tum(poses: &[TrajectoryPose], w: &mut dyn Write) -> std::io::Result<()> {
+    for p in poses {
+        let half = 0.5 * p.pose.theta();
+        writeln!(
+            w,
+            "{:.6} {} {} 0 0 0 {} {}",
+            p.stamp_s,
+            p.pose.x(),
+            p.pose.y(),
+            half.sin(),
+            half.cos()
+        )?;
+    }
+    Ok(())
+}
+
+/// Writes CSV with a header row.
+pub fn write_csv(poses: &[TrajectoryPose], w: &mut dyn Write) -> std::io::Result<()> {
+    writeln!(w, "stamp_s,x_m,y_m,theta_rad")?;
+    for p in poses {
+        writeln!(
+            w,
+            "{:.6},{},{},{}",
+            p.stamp_s,
+            p.pose.x(),
+            p.pose.y(),
+            p.pose.theta()
+        )?;
+    }
+    Ok(())
+}
+
+/// Writes KITTI-style rows (3x4 pose matrices, row-major).
+pub fn write_kitti(poses: &[TrajectoryPose], w: &mut dyn Write) -> std::io::Result<()> {
+    for p in poses {
+        let (s, c) = p.pose.theta().sin_cos();
+        writeln!(
+            w,
+            "{c} {} 0 {} {s} {c} 0 {} 0 0 1 0",
+            -s,
+            p.pose.x(),
+            p.pose.y()
+        )?;
+    }
+    Ok(())
+}
+
+/// Reads a TUM trajectory. Lines starting with `#` are comments. The 3D
+/// rotation is reduced to its yaw; stamps must be finite and strictly
+/// increasing.
+pub fn read_tum(path: &Path) -> Result<Vec<TrajectoryPose>, IoError> {
+    let text = std::fs::read_to_string(path).map_err(|source| IoError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    parse_tum(&text, path)
+}
+
+/// Parses TUM text; `path` only names the source in errors.
+pub fn parse_tum(text: &str, path: &Path) -> Result<Vec<TrajectoryPose>, IoError> {
+    const FIELDS: [&str; 8] = ["stamp", "x", "y", "z", "qx", "qy", "qz", "qw"];
+    let mut poses: Vec<TrajectoryPose> = Vec::new();
+    for record in records(text) {
+        // TUM rows have no tag: the first token is the stamp, so the field
+        // list starts at token 0.
+        if record.tokens.len() != FIELDS.len() {
+            let field = FIELDS
+                .get(record.tokens.len())
+                .copied()
+                .unwrap_or("end of line");
+            return Err(IoError::parse(
+                path,
+                record.line,
+                field,
+                format!(
+                    "a TUM row has 8 values (stamp x y z qx qy qz qw), found {}",
+                    record.tokens.len()
+                ),
+            ));
+        }
+        let mut v = [0.0; 8];
+        for (k, value) in v.iter_mut().enumerate() {
+            *value = record.f64(path, k, FIELDS[k])?;
+        }
+        let [stamp_s, x, y, _z, qx, qy, qz, qw] = v;
+        let norm = (qx * qx + qy * qy + qz * qz + qw * qw).sqrt();
+        if norm < 1e-9 {
+            return Err(IoError::parse(path, record.line, "qw", "zero quaternion"));
+        }
+        if let Some(last) = poses.last()
+            && stamp_s <= last.stamp_s
+        {
+            return Err(IoError::parse(
+                path,
+                record.line,
+                "stamp",
+                format!(
+                    "stamp {stamp_s} is not after the previous one ({})",
+                    last.stamp_s
+                ),
+            ));
+        }
+        let yaw = (2.0 * (qw * qz + qx * qy)).atan2(1.0 - 2.0 * (qy * qy + qz * qz));
+        poses.push(TrajectoryPose {
+            stamp_s,
+            pose: Se2::new(x, y, wrap_angle(yaw)),
+        });
+    }
+    if poses.is_empty() {
+        return Err(IoError::Empty {
+            path: path.to_path_buf(),
+        });
+    }
+    Ok(poses)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tum_round_trip() {
+        let poses: Vec<_> = (0..5)
+            .map(|i| TrajectoryPose {
+                stamp_s: 100.0 + i as f64 * 0.5,
+                pose: Se2::new(i as f64, -2.0 * i as f64, -3.0 + 1.4 * i as f64),
+            })
+            .collect();
+        let mut buf = Vec::new();
+        write_tum(&poses, &mut buf).unwrap();
+        let back = parse_tum(std::str::from_utf8(&buf).unwrap(), Path::new("t.txt")).unwrap();
+        assert_eq!(back.len(), poses.len());
+        for (a, b) in poses.iter().zip(&back) {
+            assert!((a.stamp_s - b.stamp_s).abs() < 1e-6);
+            assert!((a.pose.to_vector() - b.pose.to_vector()).norm() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn tum_rejects_out_of_order_stamps() {
+        let text = "1.0 0 0 0 0 0 0 1\n0.5 0 0 0 0 0 0 1\n";
+        let err = parse_tum(text, Path::new("t.txt")).unwrap_err();
+        assert_eq!(err.line(), Some(2));
+        assert!(err.to_string().contains("stamp"), "{err}");
+    }
+
+    #[test]
+    fn kitti_row_is_rotation_and_translation() {
+        let poses = [TrajectoryPose {
+            stamp_s: 0.0,
+            pose: Se2::new(1.5, -2.0, std::f64::consts::FRAC_PI_2),
+        }];
+        let mut buf = Vec::new();
+        write_kitti(&poses, &mut buf).unwrap();
+        let values: Vec<f64> = std::str::from_utf8(&buf)
+            .unwrap()
+            .split_whitespace()
+            .map(|t| t.parse().unwrap())
+            .collect();
+        let expected = [0.0, -1.0, 0.0, 1.5, 1.0, 0.0, 0.0, -2.0, 0.0, 0.0, 1.0, 0.0];
+        assert_eq!(values.len(), 12);
+        for (v, e) in values.iter().zip(expected) {
+            assert!((v - e).abs() < 1e-12, "{values:?}");
+        }
+    }
+}
