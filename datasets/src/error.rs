@@ -9,7 +9,9 @@ use thiserror::Error;
 #[non_exhaustive]
 pub enum DatasetError {
     /// The file or folder could not be opened, read or written.
-    #[error("{}: {source}", path.display())]
+    // The OS error is the `source`, not part of this message, so that error
+    // chains (`{:#}` in the CLI) print it once.
+    #[error("I/O error on {}", path.display())]
     Io {
         path: PathBuf,
         #[source]

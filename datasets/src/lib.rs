@@ -5,5 +5,11 @@
 //! MSIS/DVL/MRU missions with ground truth.
 
 pub mod error;
+pub mod mcap;
+pub mod miniking;
+pub mod ping360;
+pub mod sim;
+pub mod sonar_recording;
+pub mod stpere;
 
 pub use error::DatasetError;

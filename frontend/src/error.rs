@@ -21,6 +21,27 @@ pub enum FrontendError {
     /// sample before a beam, an empty image).
     #[error("{what}: {message}")]
     InsufficientData { what: String, message: String },
+    /// A scan has fewer valid ranges than `SegmentationConfig::min_scan_points`:
+    /// the rotation gives no scan to match (callers treat it as "no scan").
+    #[error(
+        "scan at t = {reference_stamp_s:.3} s: {found} valid ranges, at least {required} required"
+    )]
+    TooFewRanges {
+        reference_stamp_s: f64,
+        found: usize,
+        required: usize,
+    },
+    /// A stamp lies outside the time span the navigation covers (beyond the
+    /// allowed extrapolation).
+    #[error(
+        "t = {stamp_s:.3} s is outside the navigation span [{start_s:.3}, {end_s:.3}] s (+/- {max_extrapolation_s} s allowed)"
+    )]
+    OutsideNavigation {
+        stamp_s: f64,
+        start_s: f64,
+        end_s: f64,
+        max_extrapolation_s: f64,
+    },
 }
 
 impl FrontendError {

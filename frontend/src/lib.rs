@@ -4,7 +4,15 @@
 //! assembly, beam segmentation, scans `S_k`, acoustic images `I_k` and the
 //! acoustic-image measurement model of the seed paper.
 
+pub mod dead_reckoning;
 pub mod error;
+pub mod icp;
+pub mod image;
+pub mod matcher;
+pub mod motion;
+pub mod rotation;
+pub mod scan;
+pub mod segmentation;
 pub mod sensors;
 
 pub use error::FrontendError;

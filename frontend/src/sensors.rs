@@ -90,6 +90,13 @@ pub struct SensorMounting {
     pub vehicle_from_sonar: Se2,
     /// Pose of the DVL instrument frame in the vehicle frame `[x, y, yaw]`.
     pub vehicle_from_dvl: Se2,
+    /// Added to every attitude yaw to obtain the vehicle heading in the
+    /// world frame: the heading sensor's mounting misalignment plus the
+    /// magnetic declination, radians. A calibration of the vehicle, so it
+    /// travels with the mission (the St Pere reader sets the value fitted
+    /// on that mission); the dead reckoning adds its own
+    /// `heading_offset_rad` on top.
+    pub heading_offset_rad: f64,
 }
 
 impl Default for SensorMounting {
@@ -97,6 +104,7 @@ impl Default for SensorMounting {
         Self {
             vehicle_from_sonar: Se2::identity(),
             vehicle_from_dvl: Se2::identity(),
+            heading_offset_rad: 0.0,
         }
     }
 }

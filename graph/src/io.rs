@@ -38,11 +38,15 @@ pub enum GraphFormat {
 /// the smallest node id, preferring the odometry chain `i -> i+1` (see
 /// [`g2o::parse_g2o`]).
 pub fn read_pose_graph(path: &Path) -> Result<PoseGraph, IoError> {
-    let text = std::fs::read_to_string(path).map_err(|source| IoError::Io {
+    parse_pose_graph(&read_text(path)?, path)
+}
+
+/// Reads a whole text file, naming it in the error.
+pub(crate) fn read_text(path: &Path) -> Result<String, IoError> {
+    std::fs::read_to_string(path).map_err(|source| IoError::Io {
         path: path.to_path_buf(),
         source,
-    })?;
-    parse_pose_graph(&text, path)
+    })
 }
 
 /// Parses pose-graph text; `path` is only used in error messages.

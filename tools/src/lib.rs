@@ -4,4 +4,8 @@
 //! output files and, in later stages, the SLAM pipeline that joins the
 //! frontend and the backend.
 
+pub mod eval;
+pub mod matching;
 pub mod output;
+pub mod plots;
+pub mod slam;

@@ -26,8 +26,20 @@ enum Command {
     Convert(cmd::convert::Args),
     /// Simulate an MSIS/DVL/heading mission with ground truth into MCAP.
     Simulate(cmd::simulate::Args),
+    /// Run the SLAM pipeline over a mission (MCAP or St Pere folder).
+    Run(cmd::run::Args),
     /// Match the scan of one rotation against the acoustic image of another.
     Match(cmd::matching::Args),
+    /// Success rate of the matcher against ground truth, beside ICP.
+    BenchMatcher(cmd::bench_matcher::Args),
+    /// Distortion of rotations and drift of dead reckoning against ground truth.
+    BenchDeadReckoning(cmd::bench_dead_reckoning::Args),
+    /// ATE and RPE of an estimated trajectory against a reference (TUM files).
+    Eval(cmd::eval::Args),
+    /// Precision-recall of the loop-closure gate from a run's loops.csv.
+    EvalLoops(cmd::eval_loops::Args),
+    /// Simulate the built-in marina mission and run the whole pipeline on it.
+    Demo(cmd::demo::Args),
 }
 
 fn main() -> ExitCode {
@@ -37,7 +49,13 @@ fn main() -> ExitCode {
         Command::Optimize(args) => cmd::optimize::run(args),
         Command::Convert(args) => cmd::convert::run(args),
         Command::Simulate(args) => cmd::simulate::run(args),
+        Command::Run(args) => cmd::run::run(args),
         Command::Match(args) => cmd::matching::run(args),
+        Command::BenchMatcher(args) => cmd::bench_matcher::run(args),
+        Command::BenchDeadReckoning(args) => cmd::bench_dead_reckoning::run(args),
+        Command::Eval(args) => cmd::eval::run(args),
+        Command::EvalLoops(args) => cmd::eval_loops::run(args),
+        Command::Demo(args) => cmd::demo::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -17,7 +17,14 @@ where
     };
     std::fs::create_dir_all(dir)
         .with_context(|| format!("cannot create folder {}", dir.display()))?;
-    let tmp = tempfile::NamedTempFile::new_in(dir)
+    // Finished outputs are ordinary files (0644 before the umask), not the
+    // 0600 that temporary files get by default.
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(".echofield-").suffix(".tmp");
+    #[cfg(unix)]
+    builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o644));
+    let tmp = builder
+        .tempfile_in(dir)
         .with_context(|| format!("cannot create a temporary file in {}", dir.display()))?;
     {
         let mut writer = BufWriter::new(tmp.as_file());
@@ -29,7 +36,10 @@ where
     tmp.as_file()
         .sync_all()
         .with_context(|| format!("while syncing {}", path.display()))?;
+    // Keep only the io::Error: the PersistError owns the temporary file,
+    // which would otherwise live (on disk) as long as the error does.
     tmp.persist(path)
+        .map_err(|e| e.error)
         .with_context(|| format!("cannot move the finished file to {}", path.display()))?;
     Ok(())
 }
@@ -59,5 +69,15 @@ mod tests {
         assert_eq!(std::fs::read(&path).unwrap(), b"first");
         // No temporary files are left behind.
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            let mode = std::fs::metadata(&path).unwrap().permissions().mode();
+            assert_eq!(
+                mode & 0o044,
+                0o044,
+                "outputs are readable by others: {mode:o}"
+            );
+        }
     }
 }

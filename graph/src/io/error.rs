@@ -6,7 +6,9 @@ use thiserror::Error;
 #[derive(Debug, Error)]
 #[non_exhaustive]
 pub enum IoError {
-    #[error("{}: {source}", path.display())]
+    // The OS error is the `source`, not part of this message, so that error
+    // chains (`{:#}` in the CLI) print it once.
+    #[error("I/O error on {}", path.display())]
     Io {
         path: PathBuf,
         #[source]

@@ -29,11 +29,7 @@ const PRIOR_FIELDS: [&str; 10] = [
 
 /// Reads a g2o file.
 pub fn read_g2o(path: &Path) -> Result<PoseGraph, IoError> {
-    let text = std::fs::read_to_string(path).map_err(|source| IoError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    parse_g2o(&text, path)
+    parse_g2o(&super::read_text(path)?, path)
 }
 
 /// Parses g2o text; `path` only names the source in errors. Without any

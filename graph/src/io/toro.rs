@@ -23,11 +23,7 @@ const EDGE_FIELDS: [&str; 11] = [
 
 /// Reads a TORO file.
 pub fn read_toro(path: &Path) -> Result<PoseGraph, IoError> {
-    let text = std::fs::read_to_string(path).map_err(|source| IoError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    parse_toro(&text, path)
+    parse_toro(&super::read_text(path)?, path)
 }
 
 /// Parses TORO text; `path` only names the source in errors.

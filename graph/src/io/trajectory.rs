@@ -85,11 +85,7 @@ pub fn write_kitti(poses: &[TrajectoryPose], w: &mut dyn Write) -> std::io::Resu
 /// rotation is reduced to its yaw; stamps must be finite and strictly
 /// increasing.
 pub fn read_tum(path: &Path) -> Result<Vec<TrajectoryPose>, IoError> {
-    let text = std::fs::read_to_string(path).map_err(|source| IoError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    parse_tum(&text, path)
+    parse_tum(&super::read_text(path)?, path)
 }
 
 /// Parses TUM text; `path` only names the source in errors.

@@ -1,8 +1,163 @@
-//! Placeholder until this subcommand lands.
+//! `echofield convert`: real logs into echofield MCAP missions.
+
+use anyhow::{Context, Result};
+use echofield_datasets::mcap::write_mission;
+use echofield_datasets::miniking::read_miniking_bag;
+use echofield_datasets::ping360::read_ping360;
+use echofield_datasets::sonar_recording::SonarRecording;
+use echofield_datasets::stpere::{MARINA_YAW_OFFSET_RAD, read_stpere_dir};
+use std::path::{Path, PathBuf};
 
 #[derive(Debug, clap::Subcommand)]
-pub enum Args {}
+pub enum Args {
+    /// Girona St Pere marina logs (DVL, MTi, DGPS, sonar setup and beams).
+    #[command(after_help = STPERE_EXAMPLES)]
+    Stpere(StPereArgs),
+    /// A Blue Robotics Ping360 log written by Ping Viewer (.bin): beams only.
+    #[command(after_help = PING360_EXAMPLES)]
+    Ping360(SonarArgs),
+    /// A ROS 1 bag with Tritech MiniKing miniking_ros/AcousticBeam messages:
+    /// beams only.
+    #[command(after_help = MINIKING_EXAMPLES)]
+    Miniking(SonarArgs),
+}
 
-pub fn run(args: Args) -> anyhow::Result<()> {
-    match args {}
+const STPERE_EXAMPLES: &str = "\
+Examples:
+  echofield convert stpere datasets/stpere-marina --output marina.mcap
+  # Correct the MTi heading with the offset measured against DGPS (+19.4 deg):
+  echofield convert stpere datasets/stpere-marina --yaw-offset-deg 19.4 --output marina.mcap
+
+Frames: world x east / y north about the first DGPS fix; vehicle x forward,
+y port; yaw counter-clockwise from east (see datasets/stpere-marina/README.md).";
+
+const PING360_EXAMPLES: &str = "\
+Examples:
+  echofield convert ping360 datasets/msis-real/ping360/Sensor_Log_01__inside_base.bin --output beams.mcap
+
+Beam stamps are seconds since the log began. A damaged log is read as far as it
+is valid; what was skipped is printed.";
+
+const MINIKING_EXAMPLES: &str = "\
+Examples:
+  echofield convert miniking datasets/msis-real/miniking/full_sonar_scan_2015-05-26-11-38-04.bag --output beams.mcap
+
+Only uncompressed bags are read (run `rosbag decompress` on others).";
+
+#[derive(Debug, clap::Args)]
+pub struct StPereArgs {
+    /// Folder with the `<prefix>_DVL.log`, `_MTI.log`, `_DGPS.log` (and
+    /// optional `_SETUP.log`, `_IS_timestamps.log`, `_IS.log`) files.
+    pub dir: PathBuf,
+    /// Output MCAP file (written atomically).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Degrees added to every MTi yaw (counter-clockwise positive). 0 keeps the
+    /// attitude as recorded; the marina mission needs +19.4.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub yaw_offset_deg: f64,
+}
+
+#[derive(Debug, clap::Args)]
+pub struct SonarArgs {
+    /// Input log file.
+    pub input: PathBuf,
+    /// Output MCAP file (written atomically).
+    #[arg(short, long)]
+    pub output: PathBuf,
+}
+
+pub fn run(args: Args) -> Result<()> {
+    match args {
+        Args::Stpere(a) => stpere(&a),
+        Args::Ping360(a) => sonar(&a, read_ping360),
+        Args::Miniking(a) => sonar(&a, read_miniking_bag),
+    }
+}
+
+fn stpere(args: &StPereArgs) -> Result<()> {
+    anyhow::ensure!(
+        args.yaw_offset_deg.is_finite(),
+        "--yaw-offset-deg must be finite"
+    );
+    let mut logs = read_stpere_dir(&args.dir)
+        .with_context(|| format!("cannot read the St Pere logs in {}", args.dir.display()))?;
+    if args.yaw_offset_deg != 0.0 {
+        logs.apply_yaw_offset(args.yaw_offset_deg.to_radians());
+    }
+    for skip in &logs.skipped {
+        tracing::warn!(
+            "skipped {}:{}: {:?}",
+            skip.path.display(),
+            skip.line,
+            skip.reason
+        );
+    }
+    write(&args.output, &logs.mission)?;
+    let m = &logs.mission;
+    let valid = m.dvl.iter().filter(|d| d.valid).count();
+    println!(
+        "wrote {}: {} beams, {} DVL ({} valid), {} attitude, {} ground-truth poses; \
+         yaw offset {:+.2} deg (recommended for the marina: {:+.1})",
+        args.output.display(),
+        m.beams.len(),
+        m.dvl.len(),
+        valid,
+        m.attitude.len(),
+        m.ground_truth.len(),
+        logs.applied_yaw_offset_rad.to_degrees(),
+        MARINA_YAW_OFFSET_RAD.to_degrees()
+    );
+    if m.beams.is_empty() {
+        println!(
+            "note: no _IS.log in {}, so the mission has no beams",
+            args.dir.display()
+        );
+    }
+    Ok(())
+}
+
+fn sonar(
+    args: &SonarArgs,
+    read: fn(&Path) -> Result<SonarRecording, echofield_datasets::DatasetError>,
+) -> Result<()> {
+    let recording =
+        read(&args.input).with_context(|| format!("cannot read {}", args.input.display()))?;
+    let s = &recording.stats;
+    if let Some(stop) = &s.stopped_early {
+        tracing::warn!("{}: stopped early at {stop}", args.input.display());
+    }
+    write(&args.output, &recording.to_mission())?;
+    println!(
+        "wrote {}: {} beams from {} ({} records, {} messages; {} bad checksums, {} bad beam \
+         messages, {} skipped bytes, {} bytes cut at the end)",
+        args.output.display(),
+        recording.beams.len(),
+        recording.device,
+        s.records,
+        s.messages,
+        s.bad_checksums,
+        s.bad_beam_messages,
+        s.skipped_bytes,
+        s.truncated_tail_bytes
+    );
+    if let Some(stop) = &s.stopped_early {
+        println!("warning: the file is damaged; read up to {stop}");
+    }
+    for seg in recording.range_segments() {
+        println!(
+            "  beams {}..{}: {:.2} m range, {} bins of {:.4} m, {:.2} turns swept",
+            seg.first_beam,
+            seg.first_beam + seg.beam_count,
+            seg.range_m(),
+            seg.bins,
+            seg.bin_size_m,
+            seg.swept_rad / std::f64::consts::TAU
+        );
+    }
+    Ok(())
+}
+
+fn write(path: &Path, mission: &echofield_frontend::sensors::Mission) -> Result<()> {
+    write_mission(path, mission).with_context(|| format!("cannot write {}", path.display()))
 }

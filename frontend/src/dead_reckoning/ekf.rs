@@ -1,0 +1,361 @@
+//! The dead-reckoning EKF: record checks, the constant-velocity prediction
+//! and the DVL, heading and yaw-rate updates (the model is documented in the
+//! parent module and in [`super::model`]).
+
+use super::DeadReckoningConfig;
+use super::model::{self, PSI, ProcessNoise, R, U, V, X, Y, pose_block, symmetric6};
+use super::navigation::{DvlGap, Navigation, NavigationStep};
+use super::smoother::{self, Prediction};
+use crate::error::FrontendError;
+use crate::sensors::{Attitude, DvlVelocity, Mission, SensorMounting};
+use echofield_graph::Se2;
+use echofield_graph::se2::wrap_angle;
+use nalgebra::{Matrix2, Matrix2x6, Matrix6, RowVector6, Vector2, Vector6};
+
+/// Checks every record the filter will use: finite values, stamps
+/// non-decreasing within each stream, at least one valid DVL sample and one
+/// attitude sample.
+pub(super) fn check_records(
+    mission: &Mission,
+    config: &DeadReckoningConfig,
+) -> Result<(), FrontendError> {
+    let mut last_s = f64::NEG_INFINITY;
+    for (i, s) in mission.dvl.iter().enumerate() {
+        let record = || format!("DVL sample {i}");
+        check_stamp(s.stamp_s, last_s, record)?;
+        last_s = s.stamp_s;
+        if !s.valid {
+            continue;
+        }
+        if !(s.velocity_mps.x.is_finite() && s.velocity_mps.y.is_finite()) {
+            return Err(FrontendError::input(record(), "velocity_mps", "not finite"));
+        }
+        if config.use_dvl_covariance
+            && let Some(cov) = &s.covariance
+            && !cov.fixed_view::<2, 2>(0, 0).iter().all(|v| v.is_finite())
+        {
+            return Err(FrontendError::input(record(), "covariance", "not finite"));
+        }
+    }
+    let mut last_s = f64::NEG_INFINITY;
+    for (i, a) in mission.attitude.iter().enumerate() {
+        let record = || format!("attitude sample {i}");
+        check_stamp(a.stamp_s, last_s, record)?;
+        last_s = a.stamp_s;
+        if !a.yaw_rad.is_finite() {
+            return Err(FrontendError::input(record(), "yaw_rad", "not finite"));
+        }
+        if a.yaw_rate_radps.is_some_and(|w| !w.is_finite()) {
+            return Err(FrontendError::input(
+                record(),
+                "yaw_rate_radps",
+                "not finite",
+            ));
+        }
+    }
+    if !mission.dvl.iter().any(|s| s.valid) {
+        return Err(FrontendError::insufficient(
+            "dead reckoning",
+            format!(
+                "no valid DVL sample ({} samples, all invalid or none)",
+                mission.dvl.len()
+            ),
+        ));
+    }
+    if mission.attitude.is_empty() {
+        return Err(FrontendError::insufficient(
+            "dead reckoning",
+            "no heading: the mission has no attitude samples",
+        ));
+    }
+    Ok(())
+}
+
+fn check_stamp(
+    stamp_s: f64,
+    last_s: f64,
+    record: impl Fn() -> String,
+) -> Result<(), FrontendError> {
+    if !stamp_s.is_finite() {
+        return Err(FrontendError::input(record(), "stamp_s", "not finite"));
+    }
+    if stamp_s < last_s {
+        return Err(FrontendError::input(
+            record(),
+            "stamp_s",
+            format!("{stamp_s} s is earlier than the previous record's {last_s} s"),
+        ));
+    }
+    Ok(())
+}
+
+/// Standard deviation of the yaw rate before the first measurement of it
+/// (attitude units without a yaw rate never measure it; heading updates
+/// then estimate it), rad/s: more than a slow AUV turns.
+const INITIAL_YAW_RATE_STD_RADPS: f64 = 0.1;
+
+enum Event<'a> {
+    Dvl(&'a DvlVelocity),
+    Attitude(&'a Attitude),
+}
+
+/// Valid DVL samples and attitude samples merged in time order.
+fn events(mission: &Mission) -> Vec<(f64, Event<'_>)> {
+    let mut events: Vec<(f64, Event)> = mission
+        .dvl
+        .iter()
+        .filter(|s| s.valid)
+        .map(|s| (s.stamp_s, Event::Dvl(s)))
+        .chain(
+            mission
+                .attitude
+                .iter()
+                .map(|a| (a.stamp_s, Event::Attitude(a))),
+        )
+        .collect();
+    // Stable: at equal stamps DVL comes before attitude.
+    events.sort_by(|a, b| a.0.total_cmp(&b.0));
+    events
+}
+
+/// The filter: state `(x, y, ψ, u, v, r)` and its covariance.
+struct Ekf<'c> {
+    config: &'c DeadReckoningConfig,
+    noise: ProcessNoise,
+    /// `v_dvl = H s`: the DVL velocity in the instrument frame is the
+    /// vehicle's body velocity plus the lever-arm term `r × ℓ`, rotated by
+    /// `dvl_from_vehicle`.
+    h_dvl: Matrix2x6<f64>,
+    /// `vehicle_from_dvl` rotation.
+    vehicle_from_dvl: Matrix2<f64>,
+    /// `r × ℓ = r (-ℓ_y, ℓ_x)`: the lever arm's velocity per unit yaw rate
+    /// (zero without lever-arm compensation).
+    lever: Vector2<f64>,
+    stamp_s: f64,
+    s: Vector6<f64>,
+    p: Matrix6<f64>,
+}
+
+impl<'c> Ekf<'c> {
+    fn new(config: &'c DeadReckoningConfig, mounting: &SensorMounting) -> Self {
+        let vehicle_from_dvl = mounting.vehicle_from_dvl.rotation_matrix();
+        let arm = mounting.vehicle_from_dvl.translation();
+        let lever = if config.lever_arm_compensation {
+            Vector2::new(-arm.y, arm.x)
+        } else {
+            Vector2::zeros()
+        };
+        let mut body = Matrix2x6::zeros();
+        body.fixed_view_mut::<2, 2>(0, U)
+            .copy_from(&Matrix2::identity());
+        body.fixed_view_mut::<2, 1>(0, R).copy_from(&lever);
+        Self {
+            config,
+            noise: config.process_noise(),
+            h_dvl: vehicle_from_dvl.transpose() * body,
+            vehicle_from_dvl,
+            lever,
+            stamp_s: f64::NAN,
+            s: Vector6::zeros(),
+            p: Matrix6::zeros(),
+        }
+    }
+
+    /// Measurement covariance of a DVL sample (instrument frame), (m/s)².
+    fn dvl_noise(&self, sample: &DvlVelocity) -> Matrix2<f64> {
+        match &sample.covariance {
+            Some(c) if self.config.use_dvl_covariance => c.fixed_view::<2, 2>(0, 0).into_owned(),
+            _ => Matrix2::identity() * self.config.dvl_velocity_noise_mps.powi(2),
+        }
+    }
+
+    /// The state at the first time both a velocity and a heading exist:
+    /// origin at the vehicle, heading measured, body velocity solved from
+    /// the DVL sample (with the measured yaw rate, or 0 and a wide prior).
+    fn initialise(&mut self, stamp_s: f64, dvl: &DvlVelocity, attitude: &Attitude) {
+        let c = self.config;
+        let (r, r_var) = match attitude.yaw_rate_radps {
+            Some(w) => (w, c.yaw_rate_noise_radps.powi(2)),
+            None => (0.0, INITIAL_YAW_RATE_STD_RADPS.powi(2)),
+        };
+        let z = Vector2::new(dvl.velocity_mps.x, dvl.velocity_mps.y);
+        // v = R_m z - r ℓ, so Cov v = R_m C R_mᵀ + σ_r² ℓ ℓᵀ, Cov(v, r) = -σ_r² ℓ.
+        let v = self.vehicle_from_dvl * z - r * self.lever;
+        let cov_v = self.vehicle_from_dvl * self.dvl_noise(dvl) * self.vehicle_from_dvl.transpose()
+            + self.lever * self.lever.transpose() * r_var;
+        self.stamp_s = stamp_s;
+        self.s = Vector6::new(
+            0.0,
+            0.0,
+            wrap_angle(attitude.yaw_rad + c.heading_offset_rad),
+            v.x,
+            v.y,
+            r,
+        );
+        self.p = Matrix6::zeros();
+        self.p[(PSI, PSI)] = c.heading_noise_rad.powi(2);
+        self.p.fixed_view_mut::<2, 2>(U, U).copy_from(&cov_v);
+        let cross = -self.lever * r_var;
+        self.p.fixed_view_mut::<2, 1>(U, R).copy_from(&cross);
+        self.p
+            .fixed_view_mut::<1, 2>(R, U)
+            .copy_from(&cross.transpose());
+        self.p[(R, R)] = r_var;
+    }
+
+    /// Predicts to `stamp_s`; returns the prediction (for the smoother).
+    fn predict(&mut self, stamp_s: f64) -> Prediction {
+        let dt = stamp_s - self.stamp_s;
+        let psi_mid = self.s[PSI] + 0.5 * self.s[R] * dt;
+        let (mut next, f) = model::predict(&self.s, dt);
+        next[PSI] = wrap_angle(next[PSI]);
+        let q = model::process_covariance(&self.noise, psi_mid, dt);
+        self.s = next;
+        self.p = symmetric6(&(f * self.p * f.transpose() + q));
+        self.stamp_s = stamp_s;
+        Prediction {
+            state: self.s,
+            covariance: self.p,
+            jacobian: f,
+        }
+    }
+
+    /// Linear update with a two-dimensional measurement; returns `I - K H`.
+    fn update2(
+        &mut self,
+        h: &Matrix2x6<f64>,
+        innovation: &Vector2<f64>,
+        noise: &Matrix2<f64>,
+    ) -> Matrix6<f64> {
+        let Some(s_inv) = (h * self.p * h.transpose() + noise).try_inverse() else {
+            return Matrix6::identity();
+        };
+        let k = self.p * h.transpose() * s_inv;
+        self.s += k * innovation;
+        self.s[PSI] = wrap_angle(self.s[PSI]);
+        let i_kh = Matrix6::identity() - k * h;
+        // Joseph form: stays positive definite with rounding.
+        self.p = symmetric6(&(i_kh * self.p * i_kh.transpose() + k * noise * k.transpose()));
+        i_kh
+    }
+
+    /// Scalar update; returns `I - K H`.
+    fn update1(&mut self, h: &RowVector6<f64>, innovation: f64, variance: f64) -> Matrix6<f64> {
+        let s = (h * self.p * h.transpose())[0] + variance;
+        if s.is_nan() || s <= 0.0 {
+            return Matrix6::identity();
+        }
+        let k = self.p * h.transpose() / s;
+        self.s += k * innovation;
+        self.s[PSI] = wrap_angle(self.s[PSI]);
+        let i_kh = Matrix6::identity() - k * h;
+        self.p = symmetric6(&(i_kh * self.p * i_kh.transpose() + k * k.transpose() * variance));
+        i_kh
+    }
+
+    fn update_dvl(&mut self, sample: &DvlVelocity) -> Matrix6<f64> {
+        let z = Vector2::new(sample.velocity_mps.x, sample.velocity_mps.y);
+        let h = self.h_dvl;
+        let innovation = z - h * self.s;
+        self.update2(&h, &innovation, &self.dvl_noise(sample))
+    }
+
+    /// Heading `yaw + heading_offset_rad` (wrapped innovation), then the
+    /// yaw rate when the sample has one.
+    fn update_attitude(&mut self, attitude: &Attitude) -> Matrix6<f64> {
+        let c = self.config;
+        let z = wrap_angle(attitude.yaw_rad + c.heading_offset_rad);
+        let mut h = RowVector6::zeros();
+        h[PSI] = 1.0;
+        let mut i_kh = self.update1(&h, wrap_angle(z - self.s[PSI]), c.heading_noise_rad.powi(2));
+        if let Some(w) = attitude.yaw_rate_radps {
+            let mut h = RowVector6::zeros();
+            h[R] = 1.0;
+            i_kh = self.update1(&h, w - self.s[R], c.yaw_rate_noise_radps.powi(2)) * i_kh;
+        }
+        i_kh
+    }
+
+    fn step(&self, transition: Matrix6<f64>) -> NavigationStep {
+        NavigationStep {
+            stamp_s: self.stamp_s,
+            world_from_vehicle: Se2::new(self.s[X], self.s[Y], self.s[PSI]),
+            covariance: pose_block(&self.p),
+            transition: pose_block(&transition),
+            velocity_mps: Vector2::new(self.s[U], self.s[V]),
+            yaw_rate_radps: self.s[R],
+            state_covariance: self.p,
+            state_transition: transition,
+        }
+    }
+}
+
+/// Runs the filter over checked records (and the smoother when configured).
+pub(super) fn filter(
+    mission: &Mission,
+    config: &DeadReckoningConfig,
+) -> Result<Navigation, FrontendError> {
+    let events = events(mission);
+    let mut ekf = Ekf::new(config, &mission.mounting);
+    let mut steps: Vec<NavigationStep> = Vec::with_capacity(events.len());
+    let mut predictions: Vec<Prediction> = Vec::new();
+    let mut gaps = Vec::new();
+    let mut last_attitude: Option<&Attitude> = None;
+    let mut last_dvl: Option<&DvlVelocity> = None;
+    let mut last_dvl_s = f64::NAN;
+    for (stamp_s, event) in &events {
+        if steps.is_empty() {
+            // Initialise at the first time both a velocity and a heading exist.
+            match event {
+                Event::Dvl(s) => last_dvl = Some(*s),
+                Event::Attitude(a) => last_attitude = Some(*a),
+            }
+            if let (Some(s), Some(a)) = (last_dvl, last_attitude) {
+                ekf.initialise(*stamp_s, s, a);
+                last_dvl_s = s.stamp_s;
+                steps.push(ekf.step(Matrix6::identity()));
+            }
+            continue;
+        }
+        let prediction = ekf.predict(*stamp_s);
+        let f = prediction.jacobian;
+        if config.smoothing {
+            predictions.push(prediction);
+        }
+        let transition = match event {
+            Event::Dvl(s) => {
+                if s.stamp_s - last_dvl_s > config.max_dvl_gap_s {
+                    record_gap(&mut gaps, last_dvl_s, s.stamp_s);
+                }
+                last_dvl_s = s.stamp_s;
+                ekf.update_dvl(s) * f
+            }
+            Event::Attitude(a) => ekf.update_attitude(a) * f,
+        };
+        steps.push(ekf.step(transition));
+    }
+    if ekf.stamp_s - last_dvl_s > config.max_dvl_gap_s {
+        record_gap(&mut gaps, last_dvl_s, ekf.stamp_s);
+    }
+    let smoothed = config.smoothing && steps.len() > 1;
+    if smoothed {
+        smoother::smooth(&mut steps, &predictions);
+    }
+    Ok(Navigation::from_steps(
+        steps,
+        gaps,
+        config.max_extrapolation_s,
+        ekf.noise,
+        smoothed,
+    ))
+}
+
+fn record_gap(gaps: &mut Vec<DvlGap>, start_s: f64, end_s: f64) {
+    tracing::warn!(
+        start_s,
+        end_s,
+        "no valid DVL sample for {:.1} s; predicting with the estimated velocity",
+        end_s - start_s
+    );
+    gaps.push(DvlGap { start_s, end_s });
+}

@@ -1,0 +1,515 @@
+//! The acoustic image `I_k` of one sonar rotation (paper section 4).
+//!
+//! All bins of the rotation's beams are placed in the frame of the rotation's
+//! reference pose (motion-compensated with eq. 3-4: the caller passes the
+//! pose of every beam frame in that reference frame, see
+//! `motion::reference_from_beams`) and rasterised on a regular grid. Bin `i`
+//! of a beam is a sample at its *far end*, `reference_from_beam ⊕
+//! [bin_end_range_m(i), 0]`, as in eq. (3).
+//!
+//! Building an image has four steps:
+//! 1. [`normalise`]: intensities to `[0, 1]` — optionally smoothed along
+//!    range like the segmentation smooths them, blind zone masked, an optional
+//!    per-range background (a quantile over the rotation's beams, which
+//!    removes rings at a constant range such as near-field ringing and the
+//!    range-dependent noise floor) subtracted, then divided by a high
+//!    quantile of the rotation's values and clamped to 1.
+//! 2. [`raster`]: the two interpolations the paper names, filling the wedge
+//!    between consecutive beams ([`Interpolation`]).
+//! 3. An optional Gaussian smoothing that widens the basin of the score.
+//! 4. [`pyramid`]: max-pooled coarse levels for the branch-and-bound search.
+//!
+//! `I(x)` is the bilinear interpolation of the cell values between cell
+//! centres ([`AcousticImage::value_at`]); outside the grid it is 0. The
+//! same interpolation evaluated directly on the samples, without the
+//! raster's quantisation, is [`AcousticImage::fine_value_at`] ([`polar`]):
+//! the matcher searches on the raster and refines on the samples.
+
+pub mod grid;
+pub mod normalise;
+pub mod polar;
+pub mod pyramid;
+pub mod raster;
+pub mod synthetic;
+
+pub use grid::Grid;
+pub use polar::PolarSamples;
+pub use pyramid::Pyramid;
+
+use crate::error::FrontendError;
+use crate::sensors::SonarBeam;
+use echofield_graph::Se2;
+use nalgebra::Vector2;
+use serde::{Deserialize, Serialize};
+
+/// How cells between beam samples get their value (paper section 4).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Interpolation {
+    /// Each cell takes the value of the sample closest to its centre (the
+    /// paper's Fig. 4-b): nearest beam in angle, nearest bin endpoint in range.
+    Nearest,
+    /// Each point of the fan takes a weighted mean of the samples of the
+    /// beams whose bearing lies within `angular_half_width_rad` of its own
+    /// (triangular weights `1 - |Δφ| / w`), at its range bin; a cell holds the
+    /// mean of the points that fall in it (the paper's Fig. 1-a).
+    AngularWindow,
+}
+
+/// Configuration of acoustic-image building.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ImageConfig {
+    /// Side of one grid cell, metres. `None` derives it from the beams:
+    /// their longest range / 250 (a grid about 500 cells across), clamped
+    /// to [0.02, 0.2] m — 0.2 m for 50 m beams, 0.04 m for 10 m ones.
+    /// Smaller cells resolve more detail and cost quadratically more.
+    pub cell_size_m: Option<f64>,
+    /// Interpolation between beam samples.
+    pub interpolation: Interpolation,
+    /// Half-width of the angular window of [`Interpolation::AngularWindow`],
+    /// radians. Widened per wedge to at least the angle between its two
+    /// beams, so the fan has no holes.
+    pub angular_half_width_rad: f64,
+    /// Consecutive beams further apart than this (radians) are not joined
+    /// into a wedge: the gap stays empty (sector ends, lost beams).
+    pub max_wedge_rad: f64,
+    /// Width (bins) of a centred moving average applied along each beam
+    /// before anything else; 1 disables it. Use the segmentation's
+    /// `smoothing_bins`: the scan's ranges are the peaks of the smoothed
+    /// profiles, and the image then peaks at the same ranges.
+    pub range_smoothing_bins: usize,
+    /// Bins whose far end is closer than this range (metres) are set to 0:
+    /// the transducer's ringing and the vehicle's own echoes.
+    pub blind_zone_m: f64,
+    /// Bins farther than this range (metres) are ignored; `None` keeps all.
+    pub max_range_m: Option<f64>,
+    /// Quantile (0-1) over the rotation's beams of each range bin that is
+    /// subtracted as background; 0 subtracts nothing.
+    pub background_quantile: f64,
+    /// Quantile (0-1] of all background-subtracted samples that maps to
+    /// intensity 1 (larger values clamp to 1); 1.0 divides by the maximum.
+    pub normalisation_quantile: f64,
+    /// Exponent `γ` applied to the normalised intensity (`v^γ`); values
+    /// above 1 favour the strongest echoes over the weaker reverberation
+    /// behind them and over speckle.
+    pub intensity_exponent: f64,
+    /// Standard deviation of the Gaussian smoothing of the raster, metres;
+    /// 0 disables it.
+    pub smoothing_sigma_m: f64,
+    /// Number of max-pooled pyramid levels above the raster for the coarse
+    /// search; level `h` bounds translations of `2^h` cells.
+    pub pyramid_levels: usize,
+}
+
+impl Default for ImageConfig {
+    fn default() -> Self {
+        Self {
+            cell_size_m: None,
+            interpolation: Interpolation::AngularWindow,
+            angular_half_width_rad: 1.5_f64.to_radians(),
+            max_wedge_rad: 6.0_f64.to_radians(),
+            range_smoothing_bins: 3,
+            blind_zone_m: 1.0,
+            max_range_m: None,
+            background_quantile: 0.5,
+            normalisation_quantile: 0.999,
+            intensity_exponent: 1.0,
+            smoothing_sigma_m: 0.0,
+            pyramid_levels: 7,
+        }
+    }
+}
+
+/// Cells across the longest beam range when the cell size is derived.
+const AUTO_CELLS_PER_RANGE: f64 = 250.0;
+/// Limits of a derived cell size, metres.
+const AUTO_CELL_MIN_M: f64 = 0.02;
+const AUTO_CELL_MAX_M: f64 = 0.2;
+
+impl ImageConfig {
+    /// The cell size for these beams: `cell_size_m`, or the derived one
+    /// (see the field's doc).
+    pub fn cell_size_for(&self, beams: &[SonarBeam]) -> f64 {
+        if let Some(cell) = self.cell_size_m {
+            return cell;
+        }
+        let longest = beams.iter().map(SonarBeam::max_range_m).fold(0.0, f64::max);
+        let range = self.max_range_m.map_or(longest, |r| r.min(longest));
+        (range / AUTO_CELLS_PER_RANGE).clamp(AUTO_CELL_MIN_M, AUTO_CELL_MAX_M)
+    }
+
+    pub fn validate(&self) -> Result<(), FrontendError> {
+        let positive = |field: &str, v: f64| {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(FrontendError::config(
+                    field,
+                    format!("must be positive and finite, got {v}"),
+                ))
+            }
+        };
+        if let Some(cell) = self.cell_size_m {
+            positive("cell_size_m", cell)?;
+        }
+        positive("angular_half_width_rad", self.angular_half_width_rad)?;
+        positive("max_wedge_rad", self.max_wedge_rad)?;
+        if self.range_smoothing_bins == 0 {
+            return Err(FrontendError::config(
+                "range_smoothing_bins",
+                "must be at least 1 (1 = no smoothing)",
+            ));
+        }
+        if !(self.blind_zone_m.is_finite() && self.blind_zone_m >= 0.0) {
+            return Err(FrontendError::config(
+                "blind_zone_m",
+                format!("must be finite and >= 0, got {}", self.blind_zone_m),
+            ));
+        }
+        if let Some(r) = self.max_range_m {
+            positive("max_range_m", r)?;
+        }
+        if !(0.0..=1.0).contains(&self.background_quantile) {
+            return Err(FrontendError::config(
+                "background_quantile",
+                format!("must lie in [0, 1], got {}", self.background_quantile),
+            ));
+        }
+        if !(self.normalisation_quantile > 0.0 && self.normalisation_quantile <= 1.0) {
+            return Err(FrontendError::config(
+                "normalisation_quantile",
+                format!("must lie in (0, 1], got {}", self.normalisation_quantile),
+            ));
+        }
+        positive("intensity_exponent", self.intensity_exponent)?;
+        if !(self.smoothing_sigma_m.is_finite() && self.smoothing_sigma_m >= 0.0) {
+            return Err(FrontendError::config(
+                "smoothing_sigma_m",
+                format!("must be finite and >= 0, got {}", self.smoothing_sigma_m),
+            ));
+        }
+        if self.pyramid_levels > 12 {
+            return Err(FrontendError::config(
+                "pyramid_levels",
+                format!(
+                    "at most 12 levels (4096 cells), got {}",
+                    self.pyramid_levels
+                ),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// The acoustic image `I_k`: a grid of intensities in `[0, 1]` in the frame
+/// of the rotation's reference pose, plus its search pyramid.
+#[derive(Clone, Debug)]
+pub struct AcousticImage {
+    grid: Grid,
+    pyramid: Pyramid,
+    /// The samples behind the raster (`None` for images made from a grid).
+    polar: Option<PolarSamples>,
+    /// The largest value of the grid (0 for an empty image).
+    max_value: f32,
+}
+
+impl AcousticImage {
+    /// Builds `I_k` from the beams of one rotation and the pose of each beam
+    /// frame in the reference frame (`reference_from_beams[j]` for
+    /// `beams[j]`: origin at the transducer, x along the beam).
+    ///
+    /// Errors: invalid config; mismatched lengths; a beam with a non-finite
+    /// angle, bin size or first-bin range, or a non-positive bin size; a
+    /// non-finite pose; no beams. A rotation whose echoes are all zero gives
+    /// an image whose [`AcousticImage::is_empty`] is true, not an error.
+    pub fn build(
+        beams: &[SonarBeam],
+        reference_from_beams: &[Se2],
+        config: &ImageConfig,
+    ) -> Result<Self, FrontendError> {
+        config.validate()?;
+        validate_beams(beams, reference_from_beams)?;
+        let profiles = normalise::normalise_beams(beams, config);
+        let cell_m = config.cell_size_for(beams);
+        let mut grid = raster::rasterise(beams, reference_from_beams, &profiles, cell_m, config)?;
+        if config.smoothing_sigma_m > 0.0 {
+            grid.smooth_gaussian(config.smoothing_sigma_m / cell_m);
+        }
+        let mut image = Self::from_grid(grid, config.pyramid_levels);
+        image.polar = Some(PolarSamples::new(
+            beams,
+            reference_from_beams,
+            profiles,
+            config,
+        ));
+        Ok(image)
+    }
+
+    /// Wraps an existing grid (for tests and for images made elsewhere).
+    pub fn from_grid(grid: Grid, pyramid_levels: usize) -> Self {
+        let pyramid = Pyramid::build(&grid, pyramid_levels);
+        let max_value = grid.values().iter().copied().fold(0.0_f32, f32::max);
+        Self {
+            grid,
+            pyramid,
+            polar: None,
+            max_value,
+        }
+    }
+
+    pub fn grid(&self) -> &Grid {
+        &self.grid
+    }
+
+    pub fn pyramid(&self) -> &Pyramid {
+        &self.pyramid
+    }
+
+    pub fn cell_size_m(&self) -> f64 {
+        self.grid.cell_size_m()
+    }
+
+    /// True when no cell holds any echo (nothing to match against).
+    pub fn is_empty(&self) -> bool {
+        self.max_value <= 0.0
+    }
+
+    /// `I(x, y)`: bilinear interpolation between cell centres, 0 outside.
+    pub fn value_at(&self, x_m: f64, y_m: f64) -> f64 {
+        self.grid.bilinear(x_m, y_m)
+    }
+
+    /// `I(x, y)` and its analytic gradient `(∂I/∂x, ∂I/∂y)` in 1/m. On a cell
+    /// boundary the gradient of the cell above/right is returned.
+    pub fn value_and_gradient(&self, x_m: f64, y_m: f64) -> (f64, Vector2<f64>) {
+        self.grid.bilinear_with_gradient(x_m, y_m)
+    }
+
+    /// `I(x, y)` interpolated from the samples themselves (see [`polar`]);
+    /// the raster's bilinear value for images made from a grid.
+    pub fn fine_value_at(&self, x_m: f64, y_m: f64) -> f64 {
+        match &self.polar {
+            Some(p) => p.value_at(x_m, y_m),
+            None => self.grid.bilinear(x_m, y_m),
+        }
+    }
+
+    /// [`AcousticImage::fine_value_at`] and its gradient in 1/m (central
+    /// differences over a quarter of the finest bin for the samples).
+    pub fn fine_value_and_gradient(&self, x_m: f64, y_m: f64) -> (f64, Vector2<f64>) {
+        match &self.polar {
+            Some(p) => p.value_and_gradient(x_m, y_m, 0.25 * p.finest_bin_m()),
+            None => self.grid.bilinear_with_gradient(x_m, y_m),
+        }
+    }
+
+    /// The sample model behind the raster, when the image was built from beams.
+    pub fn samples(&self) -> Option<&PolarSamples> {
+        self.polar.as_ref()
+    }
+}
+
+fn validate_beams(beams: &[SonarBeam], reference_from_beams: &[Se2]) -> Result<(), FrontendError> {
+    if beams.is_empty() {
+        return Err(FrontendError::insufficient(
+            "acoustic image",
+            "the rotation has no beams",
+        ));
+    }
+    if beams.len() != reference_from_beams.len() {
+        return Err(FrontendError::input(
+            "acoustic image",
+            "reference_from_beams",
+            format!(
+                "{} poses for {} beams",
+                reference_from_beams.len(),
+                beams.len()
+            ),
+        ));
+    }
+    for (j, (beam, pose)) in beams.iter().zip(reference_from_beams).enumerate() {
+        let record = || format!("beam {j} (stamp {} s)", beam.stamp_s);
+        if !beam.angle_rad.is_finite() {
+            return Err(FrontendError::input(record(), "angle_rad", "not finite"));
+        }
+        if !(beam.bin_size_m.is_finite() && beam.bin_size_m > 0.0) {
+            return Err(FrontendError::input(
+                record(),
+                "bin_size_m",
+                format!("must be positive and finite, got {}", beam.bin_size_m),
+            ));
+        }
+        if !(beam.first_bin_range_m.is_finite() && beam.first_bin_range_m >= 0.0) {
+            return Err(FrontendError::input(
+                record(),
+                "first_bin_range_m",
+                format!("must be finite and >= 0, got {}", beam.first_bin_range_m),
+            ));
+        }
+        if !pose.is_finite() {
+            return Err(FrontendError::input(
+                record(),
+                "reference_from_beam",
+                "pose is not finite",
+            ));
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::image::synthetic::{SceneConfig, static_rotation};
+
+    #[test]
+    fn default_config_is_valid_and_bad_values_are_named() {
+        ImageConfig::default().validate().unwrap();
+        let bad = ImageConfig {
+            cell_size_m: Some(0.0),
+            ..ImageConfig::default()
+        };
+        let err = bad.validate().unwrap_err();
+        assert!(err.to_string().contains("cell_size_m"), "{err}");
+        let bad = ImageConfig {
+            background_quantile: 1.5,
+            ..ImageConfig::default()
+        };
+        assert!(
+            bad.validate()
+                .unwrap_err()
+                .to_string()
+                .contains("background_quantile")
+        );
+    }
+
+    #[test]
+    fn cell_size_is_derived_from_the_range_unless_given() {
+        let beam = |bins: usize, bin_size_m: f64| SonarBeam {
+            stamp_s: 0.0,
+            angle_rad: 0.0,
+            bin_size_m,
+            first_bin_range_m: 0.0,
+            intensities: vec![0; bins],
+        };
+        let auto = ImageConfig::default();
+        assert!((auto.cell_size_for(&[beam(500, 0.1)]) - 0.2).abs() < 1e-12);
+        assert!((auto.cell_size_for(&[beam(1200, 10.0 / 1200.0)]) - 0.04).abs() < 1e-12);
+        assert!((auto.cell_size_for(&[beam(200, 0.01)]) - 0.02).abs() < 1e-12);
+        assert!((auto.cell_size_for(&[beam(1000, 1.0)]) - 0.2).abs() < 1e-12);
+        let clipped = ImageConfig {
+            max_range_m: Some(20.0),
+            ..ImageConfig::default()
+        };
+        assert!((clipped.cell_size_for(&[beam(500, 0.1)]) - 0.08).abs() < 1e-12);
+        let fixed = ImageConfig {
+            cell_size_m: Some(0.15),
+            ..ImageConfig::default()
+        };
+        assert_eq!(fixed.cell_size_for(&[beam(500, 0.1)]), 0.15);
+    }
+
+    #[test]
+    fn config_rejects_unknown_keys() {
+        let err = serde_json::from_str::<ImageConfig>(r#"{"cell_size": 0.1}"#).unwrap_err();
+        assert!(err.to_string().contains("cell_size"), "{err}");
+        let cfg: ImageConfig =
+            serde_json::from_str(r#"{"interpolation": "nearest", "cell_size_m": 0.1}"#).unwrap();
+        assert_eq!(cfg.interpolation, Interpolation::Nearest);
+        assert_eq!(cfg.cell_size_m, Some(0.1));
+    }
+
+    #[test]
+    fn bad_beams_are_errors_naming_the_beam() {
+        let rotation = static_rotation(&SceneConfig::default(), 1);
+        let mut beams = rotation.beams.clone();
+        beams[7].angle_rad = f64::NAN;
+        let err = AcousticImage::build(
+            &beams,
+            &rotation.reference_from_beams,
+            &ImageConfig::default(),
+        )
+        .unwrap_err();
+        assert!(err.to_string().contains("beam 7"), "{err}");
+        assert!(err.to_string().contains("angle_rad"), "{err}");
+
+        let mut beams = rotation.beams.clone();
+        beams[3].bin_size_m = 0.0;
+        let err = AcousticImage::build(
+            &beams,
+            &rotation.reference_from_beams,
+            &ImageConfig::default(),
+        )
+        .unwrap_err();
+        assert!(err.to_string().contains("bin_size_m"), "{err}");
+
+        let mut poses = rotation.reference_from_beams.clone();
+        poses[2] = Se2::new(f64::NAN, 0.0, 0.0);
+        let err =
+            AcousticImage::build(&rotation.beams, &poses, &ImageConfig::default()).unwrap_err();
+        assert!(err.to_string().contains("beam 2"), "{err}");
+
+        let err = AcousticImage::build(
+            &rotation.beams,
+            &rotation.reference_from_beams[1..],
+            &ImageConfig::default(),
+        )
+        .unwrap_err();
+        assert!(err.to_string().contains("poses for"), "{err}");
+        assert!(AcousticImage::build(&[], &[], &ImageConfig::default()).is_err());
+    }
+
+    #[test]
+    fn silent_rotation_gives_an_empty_image() {
+        let rotation = static_rotation(&SceneConfig::default(), 1);
+        let mut beams = rotation.beams.clone();
+        for beam in &mut beams {
+            beam.intensities.iter_mut().for_each(|v| *v = 0);
+        }
+        let image = AcousticImage::build(
+            &beams,
+            &rotation.reference_from_beams,
+            &ImageConfig::default(),
+        )
+        .unwrap();
+        assert!(image.is_empty());
+        assert_eq!(image.value_at(3.0, 2.0), 0.0);
+    }
+
+    #[test]
+    fn both_interpolations_show_the_walls_and_not_the_open_water() {
+        let scene = SceneConfig::default();
+        let rotation = static_rotation(&scene, 3);
+        for interpolation in [Interpolation::Nearest, Interpolation::AngularWindow] {
+            let config = ImageConfig {
+                interpolation,
+                smoothing_sigma_m: 0.0,
+                ..ImageConfig::default()
+            };
+            let image =
+                AcousticImage::build(&rotation.beams, &rotation.reference_from_beams, &config)
+                    .unwrap();
+            // The true wall hits are bright, points 1.5 m inside them are dark.
+            let mut on_wall = 0.0;
+            let mut inside = 0.0;
+            for p in &rotation.wall_points {
+                on_wall += image.value_at(p.x, p.y);
+                let r = p.coords.norm();
+                let q = p.coords * ((r - 1.5) / r);
+                inside += image.value_at(q.x, q.y);
+            }
+            let n = rotation.wall_points.len() as f64;
+            assert!(
+                on_wall / n > 0.3,
+                "{interpolation:?}: wall mean {}",
+                on_wall / n
+            );
+            assert!(
+                inside / n < 0.05,
+                "{interpolation:?}: water mean {}",
+                inside / n
+            );
+        }
+    }
+}

@@ -1,0 +1,320 @@
+//! A regular grid of `f32` intensities with bilinear lookup.
+//!
+//! Cell `(ix, iy)` covers `[origin + ix·c, origin + (ix+1)·c) × [...)` and its
+//! value sits at the cell centre. Row-major: `values[iy * width + ix]`.
+
+use nalgebra::Vector2;
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Grid {
+    origin_x_m: f64,
+    origin_y_m: f64,
+    cell_size_m: f64,
+    width: usize,
+    height: usize,
+    values: Vec<f32>,
+}
+
+impl Grid {
+    /// A grid of zeros whose lower-left corner is `(origin_x_m, origin_y_m)`.
+    pub fn zeros(
+        origin_x_m: f64,
+        origin_y_m: f64,
+        cell_size_m: f64,
+        width: usize,
+        height: usize,
+    ) -> Self {
+        Self {
+            origin_x_m,
+            origin_y_m,
+            cell_size_m,
+            width,
+            height,
+            values: vec![0.0; width * height],
+        }
+    }
+
+    pub fn origin_m(&self) -> (f64, f64) {
+        (self.origin_x_m, self.origin_y_m)
+    }
+
+    pub fn cell_size_m(&self) -> f64 {
+        self.cell_size_m
+    }
+
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    pub fn height(&self) -> usize {
+        self.height
+    }
+
+    pub fn values(&self) -> &[f32] {
+        &self.values
+    }
+
+    pub fn values_mut(&mut self) -> &mut [f32] {
+        &mut self.values
+    }
+
+    /// The value of cell `(ix, iy)`, 0 outside the grid.
+    #[inline]
+    pub fn cell(&self, ix: i64, iy: i64) -> f32 {
+        if ix < 0 || iy < 0 || ix >= self.width as i64 || iy >= self.height as i64 {
+            0.0
+        } else {
+            self.values[iy as usize * self.width + ix as usize]
+        }
+    }
+
+    /// The cell containing `(x, y)` (may lie outside the grid).
+    #[inline]
+    pub fn cell_of(&self, x_m: f64, y_m: f64) -> (i64, i64) {
+        (
+            ((x_m - self.origin_x_m) / self.cell_size_m).floor() as i64,
+            ((y_m - self.origin_y_m) / self.cell_size_m).floor() as i64,
+        )
+    }
+
+    /// The centre of cell `(ix, iy)`.
+    pub fn cell_centre_m(&self, ix: i64, iy: i64) -> (f64, f64) {
+        (
+            self.origin_x_m + (ix as f64 + 0.5) * self.cell_size_m,
+            self.origin_y_m + (iy as f64 + 0.5) * self.cell_size_m,
+        )
+    }
+
+    /// True when `(x, y)` lies inside the grid's extent.
+    pub fn contains(&self, x_m: f64, y_m: f64) -> bool {
+        let (ix, iy) = self.cell_of(x_m, y_m);
+        ix >= 0 && iy >= 0 && ix < self.width as i64 && iy < self.height as i64
+    }
+
+    /// Position in "cell-centre" coordinates: the integer lattice point
+    /// `(i, j)` is the centre of cell `(i, j)`.
+    #[inline]
+    fn lattice(&self, x_m: f64, y_m: f64) -> (f64, f64) {
+        (
+            (x_m - self.origin_x_m) / self.cell_size_m - 0.5,
+            (y_m - self.origin_y_m) / self.cell_size_m - 0.5,
+        )
+    }
+
+    /// The four neighbouring cell values and the fractional position.
+    #[inline]
+    fn corners(&self, x_m: f64, y_m: f64) -> Option<([f32; 4], f64, f64)> {
+        let (gx, gy) = self.lattice(x_m, y_m);
+        if !(gx > -1.0 && gy > -1.0 && gx < self.width as f64 && gy < self.height as f64) {
+            return None; // also catches NaN
+        }
+        // gx, gy > -1 here, so truncating gx + 1 is floor(gx) + 1 (cheaper
+        // than `floor`, which is a libm call on baseline x86-64).
+        let (ix, iy) = ((gx + 1.0) as i64 - 1, (gy + 1.0) as i64 - 1);
+        let (fx0, fy0) = (ix as f64, iy as f64);
+        let interior =
+            ix >= 0 && iy >= 0 && ix + 1 < self.width as i64 && iy + 1 < self.height as i64;
+        let v = if interior {
+            let k = iy as usize * self.width + ix as usize;
+            [
+                self.values[k],
+                self.values[k + 1],
+                self.values[k + self.width],
+                self.values[k + self.width + 1],
+            ]
+        } else {
+            [
+                self.cell(ix, iy),
+                self.cell(ix + 1, iy),
+                self.cell(ix, iy + 1),
+                self.cell(ix + 1, iy + 1),
+            ]
+        };
+        Some((v, gx - fx0, gy - fy0))
+    }
+
+    /// Bilinear interpolation between cell centres; cells outside the grid
+    /// count as 0, so the value fades to 0 over the last half cell.
+    #[inline]
+    pub fn bilinear(&self, x_m: f64, y_m: f64) -> f64 {
+        match self.corners(x_m, y_m) {
+            None => 0.0,
+            Some(([v00, v10, v01, v11], fx, fy)) => {
+                let bottom = f64::from(v00) + fx * f64::from(v10 - v00);
+                let top = f64::from(v01) + fx * f64::from(v11 - v01);
+                bottom + fy * (top - bottom)
+            }
+        }
+    }
+
+    /// Bilinear value and its gradient in 1/m.
+    #[inline]
+    pub fn bilinear_with_gradient(&self, x_m: f64, y_m: f64) -> (f64, Vector2<f64>) {
+        match self.corners(x_m, y_m) {
+            None => (0.0, Vector2::zeros()),
+            Some(([v00, v10, v01, v11], fx, fy)) => {
+                let (v00, v10, v01, v11) = (
+                    f64::from(v00),
+                    f64::from(v10),
+                    f64::from(v01),
+                    f64::from(v11),
+                );
+                let bottom = v00 + fx * (v10 - v00);
+                let top = v01 + fx * (v11 - v01);
+                let value = bottom + fy * (top - bottom);
+                let d_dx = ((1.0 - fy) * (v10 - v00) + fy * (v11 - v01)) / self.cell_size_m;
+                let d_dy = (top - bottom) / self.cell_size_m;
+                (value, Vector2::new(d_dx, d_dy))
+            }
+        }
+    }
+
+    /// Smoothing that approximates a Gaussian of standard deviation
+    /// `sigma_cells`: `n = round(2σ²)` (at least 1) separable passes of the
+    /// binomial filter `[1 2 1] / 4`, whose variance is 1/2 cell² per pass.
+    /// Cells outside the grid count as 0.
+    pub fn smooth_gaussian(&mut self, sigma_cells: f64) {
+        if sigma_cells.is_nan() || sigma_cells <= 0.0 || self.values.is_empty() {
+            return;
+        }
+        let passes = ((2.0 * sigma_cells * sigma_cells).round() as usize).max(1);
+        let (w, h) = (self.width, self.height);
+        let mut tmp = vec![0.0_f32; w * h];
+        for _ in 0..passes {
+            // Along x, row by row.
+            for (src, dst) in self.values.chunks_exact(w).zip(tmp.chunks_exact_mut(w)) {
+                binomial_row(src, dst);
+            }
+            // Along y: whole rows at a time, so the inner loops vectorise.
+            for y in 0..h {
+                let dst = &mut self.values[y * w..(y + 1) * w];
+                let centre = &tmp[y * w..(y + 1) * w];
+                for (d, c) in dst.iter_mut().zip(centre) {
+                    *d = 0.5 * c;
+                }
+                for ny in [y.wrapping_sub(1), y + 1] {
+                    if ny < h {
+                        let side = &tmp[ny * w..(ny + 1) * w];
+                        for (d, s) in dst.iter_mut().zip(side) {
+                            *d += 0.25 * s;
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// `dst[x] = (src[x-1] + 2·src[x] + src[x+1]) / 4`, zero outside.
+fn binomial_row(src: &[f32], dst: &mut [f32]) {
+    let n = src.len();
+    if n == 1 {
+        dst[0] = 0.5 * src[0];
+        return;
+    }
+    dst[0] = 0.5 * src[0] + 0.25 * src[1];
+    dst[n - 1] = 0.5 * src[n - 1] + 0.25 * src[n - 2];
+    for (((d, l), c), r) in dst[1..n - 1]
+        .iter_mut()
+        .zip(&src[..n - 2])
+        .zip(&src[1..n - 1])
+        .zip(&src[2..])
+    {
+        *d = 0.25 * (l + r) + 0.5 * c;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ramp() -> Grid {
+        // v = 2·ix + 3·iy at cell centres.
+        let mut g = Grid::zeros(-1.0, 2.0, 0.5, 6, 5);
+        for iy in 0..5 {
+            for ix in 0..6 {
+                g.values_mut()[iy * 6 + ix] = (2 * ix + 3 * iy) as f32;
+            }
+        }
+        g
+    }
+
+    #[test]
+    fn bilinear_reproduces_a_linear_field_inside() {
+        let g = ramp();
+        // Cell (2, 1) centre: (-1 + 2.5·0.5, 2 + 1.5·0.5) = (0.25, 2.75), value 7.
+        assert!((g.bilinear(0.25, 2.75) - 7.0).abs() < 1e-6);
+        // A quarter cell to the right: +0.5 (2 per cell).
+        assert!((g.bilinear(0.375, 2.75) - 7.5).abs() < 1e-6);
+        let (v, grad) = g.bilinear_with_gradient(0.4, 3.1);
+        assert!((v - g.bilinear(0.4, 3.1)).abs() < 1e-12);
+        // 2 per cell of 0.5 m = 4 /m in x, 6 /m in y.
+        assert!((grad.x - 4.0).abs() < 1e-6 && (grad.y - 6.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn outside_is_zero_and_nan_is_zero() {
+        let g = ramp();
+        assert_eq!(g.bilinear(-5.0, 3.0), 0.0);
+        assert_eq!(g.bilinear(0.0, 100.0), 0.0);
+        assert_eq!(g.bilinear(f64::NAN, 3.0), 0.0);
+        assert_eq!(g.bilinear_with_gradient(f64::INFINITY, 3.0).0, 0.0);
+        assert!(!g.contains(-1.01, 2.1));
+        assert!(g.contains(-0.99, 2.01));
+    }
+
+    #[test]
+    fn gradient_matches_central_differences_off_cell_edges() {
+        let mut g = Grid::zeros(0.0, 0.0, 0.2, 8, 8);
+        for (k, v) in g.values_mut().iter_mut().enumerate() {
+            *v = ((k * 37) % 11) as f32 / 11.0;
+        }
+        for &(x, y) in &[(0.33, 0.47), (1.01, 0.71), (0.55, 1.29)] {
+            let (_, grad) = g.bilinear_with_gradient(x, y);
+            let h = 1e-6;
+            let dx = (g.bilinear(x + h, y) - g.bilinear(x - h, y)) / (2.0 * h);
+            let dy = (g.bilinear(x, y + h) - g.bilinear(x, y - h)) / (2.0 * h);
+            assert!((grad.x - dx).abs() < 1e-6, "{} vs {dx}", grad.x);
+            assert!((grad.y - dy).abs() < 1e-6, "{} vs {dy}", grad.y);
+        }
+    }
+
+    #[test]
+    fn smoothing_keeps_mass_and_spreads_a_spike_like_a_gaussian() {
+        let mut g = Grid::zeros(0.0, 0.0, 1.0, 31, 31);
+        g.values_mut()[15 * 31 + 15] = 1.0;
+        // σ = 1.5 cells: 2σ² = 4.5 rounds to 5 passes (variance 2.5 cells²
+        // per axis).
+        g.smooth_gaussian(1.5);
+        let sum: f32 = g.values().iter().sum();
+        assert!((sum - 1.0).abs() < 1e-5);
+        assert!((g.cell(14, 15) - g.cell(16, 15)).abs() < 1e-7);
+        assert!((g.cell(15, 13) - g.cell(13, 15)).abs() < 1e-7);
+        // Per axis the result is the binomial C(10, 5 + k) / 2^10.
+        let b = |k: i64| {
+            let n = 10u64;
+            let r = (5 + k) as u64;
+            let mut c = 1u64;
+            for i in 0..r {
+                c = c * (n - i) / (i + 1);
+            }
+            c as f32 / 1024.0
+        };
+        for (dx, dy) in [(0, 0), (1, 0), (2, 1), (3, 3)] {
+            let expected = b(dx) * b(dy);
+            let got = g.cell(15 + dx, 15 + dy);
+            assert!(
+                (got - expected).abs() < 1e-6,
+                "({dx}, {dy}): {got} vs {expected}"
+            );
+        }
+        // Variance per axis 2.5 cells², close to σ² = 2.25.
+        let var: f32 = (0..31)
+            .map(|x| {
+                let col: f32 = (0..31).map(|y| g.cell(x, y)).sum();
+                col * ((x - 15) * (x - 15)) as f32
+            })
+            .sum();
+        assert!((var - 2.5).abs() < 1e-4, "{var}");
+    }
+}

@@ -1,0 +1,281 @@
+//! Intensity normalisation of a rotation's beams to `[0, 1]`.
+//!
+//! For bin `i` of beam `j` with raw intensity `z_j(i)` (0-255):
+//! 0. `z` is the centred moving average over `range_smoothing_bins` bins
+//!    (fewer at the beam's ends), rounded, when that is more than 1;
+//! 1. `z = 0` where the bin's far end is inside the blind zone; bins beyond
+//!    `max_range_m` are dropped;
+//! 2. `d = max(0, z - b(i))` with `b(i)` the `background_quantile` of
+//!    `z_·(i)` over the rotation's beams (0 when that quantile is 0):
+//!    echoes that sit at the same range in most beams (ringing, the noise
+//!    floor's range profile) vanish, echoes of structures stay;
+//! 3. `v = min(1, d / q)` with `q` the `normalisation_quantile` of all `d`
+//!    of the rotation (the maximum when that quantile is 0), so a rotation's
+//!    strong echoes are near 1 whatever the gain, and a few outlier bins do
+//!    not squash the rest.
+//!
+//! Everything stays in integer histograms (intensities are `u8`), so the
+//! quantiles cost one pass.
+
+use super::ImageConfig;
+use crate::sensors::SonarBeam;
+
+/// Normalised intensities of every beam, stored flat.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Profiles {
+    offsets: Vec<usize>,
+    values: Vec<f32>,
+}
+
+impl Profiles {
+    /// The normalised bins of beam `j` (possibly fewer than the raw beam's
+    /// when `max_range_m` cut it).
+    pub fn beam(&self, j: usize) -> &[f32] {
+        &self.values[self.offsets[j]..self.offsets[j + 1]]
+    }
+
+    pub fn len(&self) -> usize {
+        self.offsets.len() - 1
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// Number of bins of `beam` whose far end lies within `max_range_m`.
+pub fn kept_bins(beam: &SonarBeam, max_range_m: Option<f64>) -> usize {
+    let n = beam.intensities.len();
+    match max_range_m {
+        None => n,
+        Some(r) => {
+            let k = ((r - beam.first_bin_range_m) / beam.bin_size_m).floor();
+            if k <= 0.0 { 0 } else { (k as usize).min(n) }
+        }
+    }
+}
+
+/// First bin whose far end is at or beyond the blind zone.
+fn first_unmasked_bin(beam: &SonarBeam, blind_zone_m: f64) -> usize {
+    let k = ((blind_zone_m - beam.first_bin_range_m) / beam.bin_size_m - 1.0).ceil();
+    if k <= 0.0 { 0 } else { k as usize }
+}
+
+/// Applies steps 1-3 of the module doc to every beam.
+pub fn normalise_beams(beams: &[SonarBeam], config: &ImageConfig) -> Profiles {
+    let kept: Vec<usize> = beams
+        .iter()
+        .map(|b| kept_bins(b, config.max_range_m))
+        .collect();
+    let masked: Vec<usize> = beams
+        .iter()
+        .zip(&kept)
+        .map(|(b, &n)| first_unmasked_bin(b, config.blind_zone_m).min(n))
+        .collect();
+    let smoothed: Vec<Vec<u8>> = if config.range_smoothing_bins > 1 {
+        beams
+            .iter()
+            .map(|b| moving_average(&b.intensities, config.range_smoothing_bins))
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let raw = |j: usize, i: usize| -> u8 {
+        if i < masked[j] {
+            0
+        } else if smoothed.is_empty() {
+            beams[j].intensities[i]
+        } else {
+            smoothed[j][i]
+        }
+    };
+
+    let max_bins = kept.iter().copied().max().unwrap_or(0);
+    let background: Vec<u8> = match config.background_quantile {
+        q if q <= 0.0 => vec![0; max_bins],
+        q => {
+            let mut hist = [0u32; 256];
+            (0..max_bins)
+                .map(|i| {
+                    hist.fill(0);
+                    let mut count = 0u32;
+                    for j in (0..beams.len()).filter(|&j| kept[j] > i) {
+                        hist[usize::from(raw(j, i))] += 1;
+                        count += 1;
+                    }
+                    histogram_quantile(&hist, count, q)
+                })
+                .collect()
+        }
+    };
+
+    let mut offsets = Vec::with_capacity(beams.len() + 1);
+    offsets.push(0);
+    let mut diffs: Vec<u8> = Vec::with_capacity(kept.iter().sum());
+    let mut hist = [0u32; 256];
+    for (j, &n) in kept.iter().enumerate() {
+        for (i, &b) in background.iter().enumerate().take(n) {
+            let d = raw(j, i).saturating_sub(b);
+            hist[usize::from(d)] += 1;
+            diffs.push(d);
+        }
+        offsets.push(diffs.len());
+    }
+    let total = diffs.len() as u32;
+    let mut scale = histogram_quantile(&hist, total, config.normalisation_quantile);
+    if scale == 0 {
+        scale = hist.iter().rposition(|&c| c > 0).unwrap_or(0) as u8;
+    }
+    let values = if scale == 0 {
+        vec![0.0; diffs.len()]
+    } else {
+        // One table lookup per sample: d is a u8.
+        let inv = 1.0 / f64::from(scale);
+        let gamma = config.intensity_exponent;
+        let table: Vec<f32> = (0..=255u8)
+            .map(|d| (f64::from(d) * inv).min(1.0).powf(gamma) as f32)
+            .collect();
+        diffs.iter().map(|&d| table[usize::from(d)]).collect()
+    };
+    Profiles { offsets, values }
+}
+
+/// Centred moving average of `width` bins (`width / 2` before, the rest
+/// after), over the bins that exist near the ends, rounded to u8.
+fn moving_average(values: &[u8], width: usize) -> Vec<u8> {
+    let n = values.len();
+    let mut prefix = Vec::with_capacity(n + 1);
+    prefix.push(0u32);
+    for &v in values {
+        prefix.push(prefix[prefix.len() - 1] + u32::from(v));
+    }
+    let before = width / 2;
+    let after = width - 1 - before;
+    (0..n)
+        .map(|i| {
+            let (lo, hi) = (i.saturating_sub(before), (i + after + 1).min(n));
+            let sum = prefix[hi] - prefix[lo];
+            ((sum as f32 / (hi - lo) as f32) + 0.5) as u8
+        })
+        .collect()
+}
+
+/// The value of rank `floor(q·(count-1))` (0-based, ascending) in a
+/// histogram of `count` samples; 0 for an empty histogram.
+fn histogram_quantile(hist: &[u32; 256], count: u32, q: f64) -> u8 {
+    if count == 0 {
+        return 0;
+    }
+    let rank = (q * f64::from(count - 1)).floor() as u32;
+    let mut seen = 0u32;
+    for (value, &c) in hist.iter().enumerate() {
+        seen += c;
+        if seen > rank {
+            return value as u8;
+        }
+    }
+    255
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn beam(intensities: Vec<u8>) -> SonarBeam {
+        SonarBeam {
+            stamp_s: 0.0,
+            angle_rad: 0.0,
+            bin_size_m: 0.5,
+            first_bin_range_m: 0.0,
+            intensities,
+        }
+    }
+
+    #[test]
+    fn quantile_of_a_histogram() {
+        let mut hist = [0u32; 256];
+        for v in [3u8, 1, 4, 1, 5, 9, 2, 6, 5] {
+            hist[usize::from(v)] += 1;
+        }
+        // Sorted: 1 1 2 3 4 5 5 6 9.
+        assert_eq!(histogram_quantile(&hist, 9, 0.0), 1);
+        assert_eq!(histogram_quantile(&hist, 9, 0.5), 4);
+        assert_eq!(histogram_quantile(&hist, 9, 1.0), 9);
+        assert_eq!(histogram_quantile(&[0; 256], 0, 0.5), 0);
+    }
+
+    #[test]
+    fn blind_zone_background_and_scale() {
+        // Bin far ends at 0.5, 1.0, 1.5, 2.0, 2.5 m.
+        let beams = vec![
+            beam(vec![200, 40, 10, 100, 10]),
+            beam(vec![200, 40, 10, 10, 10]),
+            beam(vec![200, 40, 50, 10, 10]),
+        ];
+        let config = ImageConfig {
+            range_smoothing_bins: 1,
+            blind_zone_m: 0.9, // masks bin 0 (far end 0.5 m), keeps bin 1 (1.0 m)
+            background_quantile: 0.5,
+            normalisation_quantile: 1.0,
+            max_range_m: Some(2.0), // keeps bins 0-3
+            ..ImageConfig::default()
+        };
+        let p = normalise_beams(&beams, &config);
+        assert_eq!(p.len(), 3);
+        // Background per bin: 0, 40, 10, 10. Differences: beam 0 bin 3 = 90,
+        // beam 2 bin 2 = 40; everything else 0. Scale = max = 90.
+        assert_eq!(p.beam(0), &[0.0, 0.0, 0.0, 1.0]);
+        assert_eq!(p.beam(1), &[0.0, 0.0, 0.0, 0.0]);
+        let b2 = p.beam(2);
+        assert!((b2[2] - 40.0 / 90.0).abs() < 1e-6 && b2[3] == 0.0);
+    }
+
+    #[test]
+    fn quantile_scale_clamps_outliers() {
+        let mut values = vec![0u8; 100];
+        values[10] = 50;
+        values[20] = 50;
+        values[30] = 250; // one outlier
+        let beams = vec![beam(values)];
+        let config = ImageConfig {
+            range_smoothing_bins: 1,
+            blind_zone_m: 0.0,
+            background_quantile: 0.0,
+            normalisation_quantile: 0.98, // rank 97 of 100 sorted -> 50
+            ..ImageConfig::default()
+        };
+        let p = normalise_beams(&beams, &config);
+        assert_eq!(p.beam(0)[10], 1.0);
+        assert_eq!(p.beam(0)[30], 1.0);
+        assert_eq!(p.beam(0)[0], 0.0);
+    }
+
+    #[test]
+    fn moving_average_is_centred_and_clipped_at_the_ends() {
+        // Width 3: one bin before, one after; the ends average two bins.
+        assert_eq!(
+            moving_average(&[0, 30, 60, 0, 3], 3),
+            vec![15, 30, 30, 21, 2]
+        );
+        // Width 4: two before, one after.
+        assert_eq!(moving_average(&[4, 8, 12, 16], 4), vec![6, 8, 10, 12]);
+        assert_eq!(moving_average(&[7], 5), vec![7]);
+        // The smoothed peak of an echo with a tail lies where a range
+        // extractor smoothing the same way finds it: bin 2, not bin 1.
+        let echo = [0u8, 180, 170, 40, 0];
+        let s = moving_average(&echo, 3);
+        assert_eq!((0..5).max_by_key(|&i| s[i]).unwrap(), 2);
+    }
+
+    #[test]
+    fn kept_bins_respects_first_bin_range() {
+        let mut b = beam(vec![0; 10]);
+        assert_eq!(kept_bins(&b, None), 10);
+        assert_eq!(kept_bins(&b, Some(2.0)), 4);
+        b.first_bin_range_m = 1.0;
+        assert_eq!(kept_bins(&b, Some(2.0)), 2);
+        assert_eq!(kept_bins(&b, Some(0.5)), 0);
+        assert_eq!(first_unmasked_bin(&b, 0.0), 0);
+        assert_eq!(first_unmasked_bin(&b, 2.0), 1);
+    }
+}

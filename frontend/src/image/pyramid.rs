@@ -1,0 +1,241 @@
+//! Sliding-window maxima of an image for branch-and-bound (the
+//! "precomputation grids" of Cartographer's fast correlative scan matcher,
+//! widened by one cell for the bilinear lookup).
+//!
+//! Level `h ≥ 1` has one value per raster cell: the maximum of the raster
+//! over the `(2^h + 1) × (2^h + 1)` cells `[x, x + 2^h] × [y, y + 2^h]`
+//! (cells outside the grid count as 0). A point at raster cell `c` read
+//! with bilinear interpolation at any of the `2^h × 2^h` translations
+//! `d0 + [0, 2^h)` only touches cells in `c + d0 + [0, 2^h]`, so
+//! `Σ_i L_h(c_i + d0)` bounds the score of the whole block from above, and
+//! no more loosely than the block requires. For a block starting left of
+//! (or below) the grid, the window of cell 0 contains every cell the block
+//! can read inside the grid, so `L_h(max(x, 0))` still bounds it; blocks
+//! wholly outside the grid read 0.
+//!
+//! Values are stored as `u8`, rounded up on a scale that maps the raster's
+//! largest value to 255, so a level costs one byte per cell and the bound
+//! stays an upper bound (to within the scale's rounding, which is upwards).
+//! Level `h` is built from level `h - 1` with one maximum of two cells
+//! `2^(h-1)` apart per axis; level 1 from the raster with three cells.
+
+use super::grid::Grid;
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct PyramidLevel {
+    width: usize,
+    height: usize,
+    /// `2^h`: the window spans `block + 1` cells per axis.
+    block: usize,
+    /// Row-major, one value per raster cell.
+    values: Vec<u8>,
+}
+
+impl PyramidLevel {
+    /// Row-major quantised maxima, one per raster cell (see
+    /// [`Pyramid::scale`]).
+    pub fn values(&self) -> &[u8] {
+        &self.values
+    }
+
+    /// Cells per row (the raster's width).
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    /// Cells per column (the raster's height).
+    pub fn height(&self) -> usize {
+        self.height
+    }
+
+    /// `2^h`: translations per axis of the blocks this level bounds.
+    pub fn block(&self) -> usize {
+        self.block
+    }
+
+    /// The quantised bound of the block of translations starting at raster
+    /// cell `(x, y)` (see the module doc); 0 when the block cannot reach
+    /// the grid.
+    #[inline]
+    pub fn get(&self, x: i64, y: i64) -> u8 {
+        let block = self.block as i64;
+        if x >= self.width as i64 || y >= self.height as i64 || x < -block || y < -block {
+            return 0;
+        }
+        self.values[y.max(0) as usize * self.width + x.max(0) as usize]
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, Default)]
+pub struct Pyramid {
+    /// `levels[h - 1]` is level `h`.
+    levels: Vec<PyramidLevel>,
+    /// Quantisation: a stored value `q` stands for at most `q / scale`.
+    scale: f32,
+}
+
+impl Pyramid {
+    /// Levels `1..=levels` of `grid`.
+    pub fn build(grid: &Grid, levels: usize) -> Self {
+        let (width, height) = (grid.width(), grid.height());
+        let max = grid.values().iter().copied().fold(0.0_f32, f32::max);
+        // A hair below 255 / max, so that 255 / scale ≥ max survives f32
+        // rounding and the largest value's bound stays an upper bound.
+        let scale = if max > 0.0 {
+            255.0 / (max * (1.0 + 4.0 * f32::EPSILON))
+        } else {
+            1.0
+        };
+        if levels == 0 || width == 0 || height == 0 {
+            return Self {
+                levels: Vec::new(),
+                scale,
+            };
+        }
+        let quantised: Vec<u8> = grid.values().iter().map(|&v| quantise(v, scale)).collect();
+        let mut out: Vec<PyramidLevel> = Vec::with_capacity(levels);
+        // Level 1: windows of 3 cells, as two overlapping windows of 2.
+        let pairs = dilate(&quantised, width, height, 1);
+        out.push(PyramidLevel {
+            width,
+            height,
+            block: 2,
+            values: dilate(&pairs, width, height, 1),
+        });
+        for h in 2..=levels {
+            let previous = &out[h - 2];
+            let shift = 1usize << (h - 1);
+            out.push(PyramidLevel {
+                width,
+                height,
+                block: 1 << h,
+                values: dilate(&previous.values, width, height, shift),
+            });
+        }
+        Self { levels: out, scale }
+    }
+
+    /// Number of levels above the raster (the raster itself is level 0).
+    pub fn len(&self) -> usize {
+        self.levels.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.levels.is_empty()
+    }
+
+    /// Level `h` (`1 ≤ h ≤ len()`).
+    pub fn level(&self, h: usize) -> &PyramidLevel {
+        &self.levels[h - 1]
+    }
+
+    /// Stored values are in units of `1 / scale`: a sum of stored values
+    /// divided by `scale` bounds the sum of the raster values.
+    pub fn scale(&self) -> f32 {
+        self.scale
+    }
+}
+
+/// The smallest `q` with `q / scale ≥ v` (0 for `v ≤ 0`, 255 at most).
+fn quantise(v: f32, scale: f32) -> u8 {
+    if v.is_nan() || v <= 0.0 {
+        return 0;
+    }
+    let mut q = (v * scale).ceil().min(255.0);
+    // Rounding of the product may land one step short.
+    if q < 255.0 && q / scale < v {
+        q += 1.0;
+    }
+    q as u8
+}
+
+/// `out(x, y) = max(in(x, y), in(x + s, y), in(x, y + s), in(x + s, y + s))`
+/// (cells beyond the grid count as 0): windows `[x, x + s]` per axis when
+/// `in` holds single cells, and in general the union of two windows `s`
+/// apart.
+fn dilate(values: &[u8], width: usize, height: usize, s: usize) -> Vec<u8> {
+    let mut rows = vec![0u8; values.len()];
+    for (src, dst) in values.chunks_exact(width).zip(rows.chunks_exact_mut(width)) {
+        let split = width.saturating_sub(s);
+        for ((d, a), b) in dst[..split].iter_mut().zip(src).zip(&src[s..]) {
+            *d = (*a).max(*b);
+        }
+        dst[split..].copy_from_slice(&src[split..]);
+    }
+    let mut out = rows.clone();
+    for y in 0..height.saturating_sub(s) {
+        let (top, below) = (y * width, (y + s) * width);
+        let (head, tail) = out.split_at_mut(below);
+        for (d, b) in head[top..top + width].iter_mut().zip(&tail[..width]) {
+            *d = (*d).max(*b);
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    #[test]
+    fn every_level_bounds_its_blocks_exactly() {
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let mut grid = Grid::zeros(0.0, 0.0, 1.0, 37, 23);
+        for v in grid.values_mut() {
+            *v = if rng.random_bool(0.1) {
+                rng.random::<f32>() * 0.8
+            } else {
+                0.0
+            };
+        }
+        let pyramid = Pyramid::build(&grid, 5);
+        assert_eq!(pyramid.len(), 5);
+        let scale = pyramid.scale();
+        for h in 1..=5usize {
+            let level = pyramid.level(h);
+            let block = 1i64 << h;
+            assert_eq!(level.block() as i64, block);
+            for _ in 0..400 {
+                let cx = rng.random_range(-2 * block..37 + block);
+                let cy = rng.random_range(-2 * block..23 + block);
+                let bound = f32::from(level.get(cx, cy)) / scale;
+                // The true maximum over the cells a bilinear lookup can read
+                // for the block of translations (one more cell per axis).
+                let mut max = 0.0_f32;
+                for dx in 0..=block {
+                    for dy in 0..=block {
+                        max = max.max(grid.cell(cx + dx, cy + dy));
+                    }
+                }
+                assert!(bound >= max, "h {h} at ({cx}, {cy}): {bound} < {max}");
+                // Tight: one quantisation step above the block's maximum,
+                // except for blocks that start outside the grid, which are
+                // bounded by the window at the grid's edge.
+                if cx >= 0 && cy >= 0 {
+                    assert!(
+                        bound <= max + 1.0 / scale,
+                        "h {h} at ({cx}, {cy}): {bound} vs {max}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn quantisation_rounds_up() {
+        let mut rng = ChaCha8Rng::seed_from_u64(6);
+        for _ in 0..10_000 {
+            let max = rng.random_range(1e-3_f32..10.0);
+            let scale = 255.0 / max;
+            let v = rng.random_range(0.0..=max);
+            let q = quantise(v, scale);
+            assert!(f32::from(q) / scale >= v, "{v} -> {q}");
+            assert!(f32::from(q) / scale <= v + 1.0 / scale * 1.001 + 1e-6);
+        }
+        assert_eq!(quantise(-1.0, 2.0), 0);
+        assert_eq!(quantise(f32::NAN, 2.0), 0);
+        assert_eq!(quantise(1.0, 255.0), 255);
+    }
+}

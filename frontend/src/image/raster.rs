@@ -1,0 +1,683 @@
+//! Rasterisation of a rotation's motion-compensated beams (paper section 4).
+//!
+//! The fan between two consecutive beams `j` and `j+1` (a *wedge*) is swept
+//! by lines at parameters `u = m / M` (`m = 0..M`): origin and bearing are
+//! interpolated between the two beams' frames (both already in the reference
+//! frame, eq. 3-4), and each line is sampled at the bins' far ends (eq. 3),
+//! with sub-samples when bins are longer than the cells. `M = 2^L` is chosen
+//! so that neighbouring lines are at most `cell/√2` apart at the far end;
+//! line `m` starts only at the range where the coarser lines (multiples of
+//! `2^(tz(m)+1)`) become too sparse, so the near field is not oversampled.
+//! The sample spacing (≤ `cell/√2` both ways) puts at least one sample in
+//! every cell the wedge covers.
+//!
+//! Values along a line follow the [`Interpolation`]:
+//! - `Nearest`: the bin of the angularly nearer beam; a cell keeps the
+//!   sample closest to its centre (≈ the closest bin sample, Fig. 4-b);
+//! - `AngularWindow`: the triangular-weighted mean over the beams within the
+//!   window of the line's bearing; a cell holds the mean of its samples.
+//!
+//! Wedges wider than `max_wedge_rad`, or between beams with different bin
+//! geometry, are not filled; each beam's own line is always drawn.
+
+use super::grid::Grid;
+use super::normalise::Profiles;
+use super::{ImageConfig, Interpolation};
+use crate::error::FrontendError;
+use crate::sensors::SonarBeam;
+use echofield_graph::{Se2, wrap_angle};
+use std::f64::consts::SQRT_2;
+
+/// Largest image accepted, in cells (256 MB of `f32`).
+pub const MAX_CELLS: usize = 1 << 26;
+
+/// At most this many beams on each side enter an angular window.
+const MAX_WINDOW_NEIGHBOURS: usize = 32;
+
+/// Geometry of one beam in the reference frame.
+#[derive(Clone, Copy, Debug)]
+struct BeamLine {
+    origin_x_m: f64,
+    origin_y_m: f64,
+    /// Bearing, unwrapped along the acquisition order.
+    bearing_rad: f64,
+    first_bin_range_m: f64,
+    bin_size_m: f64,
+    bins: usize,
+}
+
+impl BeamLine {
+    fn far_range_m(&self) -> f64 {
+        self.first_bin_range_m + self.bins as f64 * self.bin_size_m
+    }
+
+    fn same_bins(&self, other: &BeamLine) -> bool {
+        self.bin_size_m == other.bin_size_m && self.first_bin_range_m == other.first_bin_range_m
+    }
+}
+
+fn beam_lines(beams: &[SonarBeam], poses: &[Se2], profiles: &Profiles) -> Vec<BeamLine> {
+    let mut lines = Vec::with_capacity(beams.len());
+    let mut bearing = 0.0;
+    for (j, (beam, pose)) in beams.iter().zip(poses).enumerate() {
+        bearing = if j == 0 {
+            pose.theta()
+        } else {
+            bearing + wrap_angle(pose.theta() - poses[j - 1].theta())
+        };
+        lines.push(BeamLine {
+            origin_x_m: pose.x(),
+            origin_y_m: pose.y(),
+            bearing_rad: bearing,
+            first_bin_range_m: beam.first_bin_range_m,
+            bin_size_m: beam.bin_size_m,
+            bins: profiles.beam(j).len(),
+        });
+    }
+    lines
+}
+
+/// An empty grid covering every bin of every beam, plus one cell of margin,
+/// with its origin on a multiple of the cell size.
+fn covering_grid(lines: &[BeamLine], cell_m: f64) -> Result<Grid, FrontendError> {
+    let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
+    for l in lines {
+        let r = l.far_range_m();
+        let (s, c) = l.bearing_rad.sin_cos();
+        for (x, y) in [
+            (l.origin_x_m, l.origin_y_m),
+            (l.origin_x_m + r * c, l.origin_y_m + r * s),
+        ] {
+            x0 = x0.min(x);
+            y0 = y0.min(y);
+            x1 = x1.max(x);
+            y1 = y1.max(y);
+        }
+    }
+    let ox = (x0 / cell_m).floor() * cell_m - cell_m;
+    let oy = (y0 / cell_m).floor() * cell_m - cell_m;
+    let width = ((x1 - ox) / cell_m).ceil() as usize + 2;
+    let height = ((y1 - oy) / cell_m).ceil() as usize + 2;
+    if width.saturating_mul(height) > MAX_CELLS {
+        return Err(FrontendError::config(
+            "cell_size_m",
+            format!(
+                "the image would have {width} x {height} cells (more than {MAX_CELLS}); \
+                 use larger cells or a smaller max_range_m"
+            ),
+        ));
+    }
+    Ok(Grid::zeros(ox, oy, cell_m, width, height))
+}
+
+/// How samples falling into one cell are combined.
+trait Accumulator {
+    /// A sample of value `v` at fractional position `(fx, fy)` in cell `idx`.
+    fn put(&mut self, idx: usize, fx: f32, fy: f32, v: f32);
+}
+
+/// Keeps the sample closest to the cell centre. The squared distance and
+/// the value are packed into one `u64` key (non-negative `f32` bits order
+/// like the numbers), so keeping the closest is a branch-free `min`.
+struct ClosestSample {
+    best: Vec<u64>,
+}
+
+impl Accumulator for ClosestSample {
+    #[inline]
+    fn put(&mut self, idx: usize, fx: f32, fy: f32, v: f32) {
+        let d2 = (fx - 0.5) * (fx - 0.5) + (fy - 0.5) * (fy - 0.5);
+        let key = (u64::from(d2.to_bits()) << 32) | u64::from(v.to_bits());
+        let slot = &mut self.best[idx];
+        *slot = (*slot).min(key);
+    }
+}
+
+/// Averages the samples of a cell: `(sum, count)` side by side, so one
+/// sample touches one cache line.
+struct MeanSample {
+    sum_count: Vec<[f32; 2]>,
+}
+
+impl Accumulator for MeanSample {
+    #[inline]
+    fn put(&mut self, idx: usize, _fx: f32, _fy: f32, v: f32) {
+        let slot = &mut self.sum_count[idx];
+        slot[0] += v;
+        slot[1] += 1.0;
+    }
+}
+
+/// Rasterises the normalised beams into a grid (see the module doc).
+pub fn rasterise(
+    beams: &[SonarBeam],
+    poses: &[Se2],
+    profiles: &Profiles,
+    cell_m: f64,
+    config: &ImageConfig,
+) -> Result<Grid, FrontendError> {
+    let lines = beam_lines(beams, poses, profiles);
+    let mut grid = covering_grid(&lines, cell_m)?;
+    let n = grid.width() * grid.height();
+    let mut painter = Painter::new(&grid, config);
+    match config.interpolation {
+        Interpolation::Nearest => {
+            let mut acc = ClosestSample {
+                best: vec![u64::MAX; n],
+            };
+            painter.paint(&lines, profiles, &mut acc);
+            for (out, key) in grid.values_mut().iter_mut().zip(&acc.best) {
+                *out = if *key == u64::MAX {
+                    0.0
+                } else {
+                    f32::from_bits(*key as u32)
+                };
+            }
+        }
+        Interpolation::AngularWindow => {
+            let mut acc = MeanSample {
+                sum_count: vec![[0.0; 2]; n],
+            };
+            painter.paint(&lines, profiles, &mut acc);
+            for (out, [sum, count]) in grid.values_mut().iter_mut().zip(&acc.sum_count) {
+                *out = if *count > 0.0 { sum / count } else { 0.0 };
+            }
+        }
+    }
+    Ok(grid)
+}
+
+/// Sweeps the wedges and feeds samples to an [`Accumulator`].
+struct Painter {
+    origin_x_m: f64,
+    origin_y_m: f64,
+    inv_cell: f64,
+    width: usize,
+    height: usize,
+    /// Largest spacing between samples, metres.
+    spacing_m: f64,
+    interpolation: Interpolation,
+    half_width_rad: f64,
+    max_wedge_rad: f64,
+    /// Scratch: combined profile of one line, and window weights.
+    combined: Vec<f32>,
+    weights: Vec<(usize, f32)>,
+    jobs: Vec<LineJob>,
+}
+
+impl Painter {
+    fn new(grid: &Grid, config: &ImageConfig) -> Self {
+        let (ox, oy) = grid.origin_m();
+        Self {
+            origin_x_m: ox,
+            origin_y_m: oy,
+            inv_cell: 1.0 / grid.cell_size_m(),
+            width: grid.width(),
+            height: grid.height(),
+            spacing_m: grid.cell_size_m() / SQRT_2,
+            interpolation: config.interpolation,
+            half_width_rad: config.angular_half_width_rad,
+            max_wedge_rad: config.max_wedge_rad,
+            combined: Vec::new(),
+            weights: Vec::new(),
+            jobs: Vec::new(),
+        }
+    }
+
+    fn paint<A: Accumulator>(&mut self, lines: &[BeamLine], profiles: &Profiles, acc: &mut A) {
+        for j in 0..lines.len() {
+            let a = &lines[j];
+            let next = lines
+                .get(j + 1)
+                .filter(|b| b.same_bins(a))
+                .filter(|b| (b.bearing_rad - a.bearing_rad).abs() <= self.max_wedge_rad);
+            let (delta, shift_m) = match next {
+                Some(b) => (
+                    b.bearing_rad - a.bearing_rad,
+                    (b.origin_x_m - a.origin_x_m).hypot(b.origin_y_m - a.origin_y_m),
+                ),
+                None => (0.0, 0.0),
+            };
+            // Lateral spread of the wedge at its far end decides M = 2^L.
+            let spread_m = a.far_range_m() * delta.abs() + shift_m;
+            let levels = if next.is_some() && spread_m > self.spacing_m {
+                ((spread_m / self.spacing_m).log2().ceil() as u32).min(16)
+            } else {
+                0
+            };
+            let lines_in_wedge = 1usize << levels;
+            for m in 0..lines_in_wedge {
+                let u = m as f64 / lines_in_wedge as f64;
+                // Line m is needed where lines at multiples of 2^(tz+1) are
+                // more than `spacing` apart.
+                let start_range_m = if m == 0 {
+                    0.0
+                } else {
+                    let coarse =
+                        (1usize << (m.trailing_zeros() + 1)) as f64 / lines_in_wedge as f64;
+                    if delta == 0.0 {
+                        0.0
+                    } else {
+                        ((self.spacing_m / coarse - shift_m) / delta.abs()).max(0.0)
+                    }
+                };
+                let b = next.unwrap_or(a);
+                let line = SweepLine {
+                    origin_x_m: a.origin_x_m + u * (b.origin_x_m - a.origin_x_m),
+                    origin_y_m: a.origin_y_m + u * (b.origin_y_m - a.origin_y_m),
+                    bearing_rad: a.bearing_rad + u * delta,
+                    start_range_m,
+                };
+                let bins = a.bins.min(b.bins);
+                let start_bin = a.bin_at_or_after(start_range_m).min(bins);
+                let values = match self.interpolation {
+                    Interpolation::Nearest => {
+                        let k = if u < 0.5 { j } else { j + 1 };
+                        ValueSource::Beam(k)
+                    }
+                    Interpolation::AngularWindow => {
+                        let at = self.combined.len();
+                        self.window_profile(lines, profiles, j, delta, &line, start_bin, bins);
+                        ValueSource::Combined(at)
+                    }
+                };
+                self.jobs.push(self.job(a, &line, start_bin, bins, values));
+            }
+            self.draw_jobs(profiles, acc);
+        }
+    }
+
+    /// Sampling plan of one line: grid position of its first sample and the
+    /// step between samples, in cells.
+    fn job(
+        &self,
+        beam: &BeamLine,
+        line: &SweepLine,
+        start_bin: usize,
+        bins: usize,
+        values: ValueSource,
+    ) -> LineJob {
+        let (s, c) = line.bearing_rad.sin_cos();
+        let sub = (beam.bin_size_m / self.spacing_m).ceil().max(1.0) as usize;
+        let step_m = beam.bin_size_m / sub as f64;
+        // Sample q of bin i sits at far(i) + ((q + 0.5)/sub - 0.5)·bin.
+        let first_m = beam.first_bin_range_m
+            + (start_bin + 1) as f64 * beam.bin_size_m
+            + (0.5 / sub as f64 - 0.5) * beam.bin_size_m;
+        let skip = if line.start_range_m > first_m {
+            ((line.start_range_m - first_m) / step_m).ceil() as usize
+        } else {
+            0
+        };
+        LineJob {
+            gx: (line.origin_x_m + first_m * c - self.origin_x_m) * self.inv_cell,
+            gy: (line.origin_y_m + first_m * s - self.origin_y_m) * self.inv_cell,
+            sx: step_m * c * self.inv_cell,
+            sy: step_m * s * self.inv_cell,
+            sub,
+            first_sample: skip,
+            start_bin,
+            end_bin: bins,
+            values,
+        }
+    }
+
+    /// Draws the queued lines of one wedge band by band in range, so the
+    /// cells a band touches stay in cache while all its lines visit them.
+    fn draw_jobs<A: Accumulator>(&mut self, profiles: &Profiles, acc: &mut A) {
+        const BAND_SAMPLES: usize = 48;
+        let total = self
+            .jobs
+            .iter()
+            .map(|j| (j.end_bin - j.start_bin) * j.sub)
+            .max()
+            .unwrap_or(0);
+        let (w, h) = (self.width as u64, self.height as u64);
+        let mut band = 0;
+        while band < total {
+            for job in &self.jobs {
+                let values: &[f32] = match job.values {
+                    ValueSource::Beam(k) => &profiles.beam(k)[job.start_bin..job.end_bin],
+                    ValueSource::Combined(at) => {
+                        &self.combined[at..at + job.end_bin - job.start_bin]
+                    }
+                };
+                let lo = band.max(job.first_sample);
+                let hi = (band + BAND_SAMPLES).min(values.len() * job.sub);
+                if lo >= hi {
+                    continue;
+                }
+                // Positions in 32.32 fixed point: integer steps, and the
+                // cell index is a shift (float-to-int casts saturate and
+                // cost a dozen instructions each).
+                let mut x = to_fixed(job.gx + lo as f64 * job.sx);
+                let mut y = to_fixed(job.gy + lo as f64 * job.sy);
+                let (sx, sy) = (to_fixed(job.sx), to_fixed(job.sy));
+                for t in lo..hi {
+                    // Negative positions become huge and fail the test.
+                    let (ix, iy) = ((x >> 32) as u64, (y >> 32) as u64);
+                    if ix < w && iy < h {
+                        let idx = iy as usize * self.width + ix as usize;
+                        let fx = (x as u32) as f32 * FIXED_TO_UNIT;
+                        let fy = (y as u32) as f32 * FIXED_TO_UNIT;
+                        let v = if job.sub == 1 {
+                            values[t]
+                        } else {
+                            values[t / job.sub]
+                        };
+                        acc.put(idx, fx, fy, v);
+                    }
+                    x += sx;
+                    y += sy;
+                }
+            }
+            band += BAND_SAMPLES;
+        }
+        self.jobs.clear();
+        self.combined.clear();
+    }
+
+    /// Fills `self.combined` with the angular-window mean along `line`.
+    #[allow(clippy::too_many_arguments)]
+    fn window_profile(
+        &mut self,
+        lines: &[BeamLine],
+        profiles: &Profiles,
+        j: usize,
+        delta: f64,
+        line: &SweepLine,
+        start_bin: usize,
+        bins: usize,
+    ) {
+        let w = self.half_width_rad.max(delta.abs());
+        self.weights.clear();
+        let mut consider = |k: usize| -> bool {
+            let l = &lines[k];
+            if !l.same_bins(&lines[j]) {
+                return false;
+            }
+            let d = (l.bearing_rad - line.bearing_rad).abs();
+            if d < w {
+                self.weights.push((k, (1.0 - d / w) as f32));
+            }
+            // Keep walking while the bearing is within reach of the window.
+            d < w + delta.abs() + 1e-12
+        };
+        for k in (j.saturating_sub(MAX_WINDOW_NEIGHBOURS)..=j).rev() {
+            if !consider(k) && k != j {
+                break;
+            }
+        }
+        for k in j + 1..lines.len().min(j + 1 + MAX_WINDOW_NEIGHBOURS) {
+            if !consider(k) {
+                break;
+            }
+        }
+        let at = self.combined.len();
+        self.combined.resize(at + bins - start_bin, 0.0);
+        let total: f32 = self.weights.iter().map(|(_, w)| w).sum();
+        if total <= 0.0 {
+            return;
+        }
+        let out = &mut self.combined[at..];
+        for &(k, wk) in &self.weights {
+            let wk = wk / total;
+            let profile = profiles.beam(k);
+            let end = profile.len().min(bins);
+            if end <= start_bin {
+                continue;
+            }
+            for (c, v) in out.iter_mut().zip(&profile[start_bin..end]) {
+                *c += wk * v;
+            }
+        }
+    }
+}
+
+/// Scale of the 32.32 fixed-point sample positions.
+const FIXED_ONE: f64 = 4_294_967_296.0;
+const FIXED_TO_UNIT: f32 = 1.0 / 4_294_967_296.0;
+
+/// A position in cells as 32.32 fixed point (positions far outside any
+/// grid saturate, which keeps them outside).
+#[inline]
+fn to_fixed(cells: f64) -> i64 {
+    (cells * FIXED_ONE) as i64
+}
+
+/// Where the values of a line come from.
+#[derive(Clone, Copy, Debug)]
+enum ValueSource {
+    /// A beam's normalised profile.
+    Beam(usize),
+    /// The combined (angular-window) profile at this offset of the scratch.
+    Combined(usize),
+}
+
+/// The sampling plan of one line; sample `t` lies at `(gx + t·sx, gy + t·sy)`
+/// in cell units and takes value `t / sub` of the line's bins.
+#[derive(Clone, Copy, Debug)]
+struct LineJob {
+    gx: f64,
+    gy: f64,
+    sx: f64,
+    sy: f64,
+    sub: usize,
+    first_sample: usize,
+    start_bin: usize,
+    end_bin: usize,
+    values: ValueSource,
+}
+
+/// One line of a wedge sweep.
+struct SweepLine {
+    origin_x_m: f64,
+    origin_y_m: f64,
+    bearing_rad: f64,
+    start_range_m: f64,
+}
+
+impl BeamLine {
+    /// First bin whose (sub-sampled) far end may lie at or beyond `range_m`.
+    fn bin_at_or_after(&self, range_m: f64) -> usize {
+        let k = ((range_m - self.first_bin_range_m) / self.bin_size_m - 1.5).floor();
+        if k <= 0.0 { 0 } else { k as usize }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::image::normalise::normalise_beams;
+
+    /// A static sonar at the origin, beams every `step` degrees, each with a
+    /// single bright bin at `range` (far end) and zeros elsewhere.
+    fn ring(step_deg: f64, bright_bin: usize) -> (Vec<SonarBeam>, Vec<Se2>) {
+        let n = (360.0 / step_deg).round() as usize;
+        let mut beams = Vec::new();
+        let mut poses = Vec::new();
+        for k in 0..n {
+            let angle = (k as f64 * step_deg).to_radians();
+            let mut intensities = vec![0u8; 100];
+            intensities[bright_bin] = 200;
+            beams.push(SonarBeam {
+                stamp_s: k as f64,
+                angle_rad: angle,
+                bin_size_m: 0.1,
+                first_bin_range_m: 0.0,
+                intensities,
+            });
+            poses.push(Se2::new(0.0, 0.0, angle));
+        }
+        (beams, poses)
+    }
+
+    fn config(interpolation: Interpolation) -> ImageConfig {
+        ImageConfig {
+            interpolation,
+            range_smoothing_bins: 1,
+            blind_zone_m: 0.0,
+            background_quantile: 0.0,
+            normalisation_quantile: 1.0,
+            smoothing_sigma_m: 0.0,
+            ..ImageConfig::default()
+        }
+    }
+
+    #[test]
+    fn a_ring_echo_becomes_a_closed_ring_at_its_range() {
+        // Bin 49: far end at 5.0 m.
+        let (beams, poses) = ring(1.8, 49);
+        for interpolation in [Interpolation::Nearest, Interpolation::AngularWindow] {
+            let cfg = ImageConfig {
+                cell_size_m: Some(0.1),
+                ..config(interpolation)
+            };
+            let profiles = normalise_beams(&beams, &cfg);
+            let grid =
+                rasterise(&beams, &poses, &profiles, cfg.cell_size_for(&beams), &cfg).unwrap();
+            // Every direction (not only beam directions) finds the ring at 5 m.
+            for k in 0..720 {
+                let a = (k as f64 * 0.5 + 0.25).to_radians();
+                // A nearest-sample ring is the digital circle of cells whose
+                // centres lie within half a bin of 5 m: one cell thick, its
+                // cells may touch only at corners, so look at the 3x3 cells
+                // around the point.
+                let (ix, iy) = grid.cell_of(5.0 * a.cos(), 5.0 * a.sin());
+                let mut on: f64 = 0.0;
+                for dx in -1..=1 {
+                    for dy in -1..=1 {
+                        on = on.max(f64::from(grid.cell(ix + dx, iy + dy)));
+                    }
+                }
+                assert!(on > 0.3, "{interpolation:?}: hole at {a} rad: {on}");
+                let (x, y) = (4.5 * a.cos(), 4.5 * a.sin());
+                let (ix, iy) = grid.cell_of(x, y);
+                assert_eq!(grid.cell(ix, iy), 0.0, "{interpolation:?} at 4.5 m");
+                let (x, y) = (5.5 * a.cos(), 5.5 * a.sin());
+                let (ix, iy) = grid.cell_of(x, y);
+                assert_eq!(grid.cell(ix, iy), 0.0, "{interpolation:?} at 5.5 m");
+            }
+        }
+    }
+
+    #[test]
+    fn nearest_sample_takes_the_nearer_beam() {
+        // Two beams 4 degrees apart; the first bright at bin 29 (3.0 m), the
+        // second at bin 39 (4.0 m).
+        let mk = |angle_deg: f64, bin: usize| {
+            let mut intensities = vec![0u8; 60];
+            intensities[bin] = 100;
+            SonarBeam {
+                stamp_s: 0.0,
+                angle_rad: angle_deg.to_radians(),
+                bin_size_m: 0.1,
+                first_bin_range_m: 0.0,
+                intensities,
+            }
+        };
+        let beams = vec![mk(0.0, 29), mk(4.0, 39)];
+        let poses: Vec<Se2> = beams
+            .iter()
+            .map(|b| Se2::new(0.0, 0.0, b.angle_rad))
+            .collect();
+        let cfg = ImageConfig {
+            cell_size_m: Some(0.05),
+            ..config(Interpolation::Nearest)
+        };
+        let profiles = normalise_beams(&beams, &cfg);
+        let grid = rasterise(&beams, &poses, &profiles, cfg.cell_size_for(&beams), &cfg).unwrap();
+        let at = |r: f64, deg: f64| {
+            let a = deg.to_radians();
+            let (ix, iy) = grid.cell_of(r * a.cos(), r * a.sin());
+            grid.cell(ix, iy)
+        };
+        assert_eq!(at(3.0, 1.0), 1.0); // nearer to beam 0, which is bright at 3 m
+        assert_eq!(at(3.0, 3.0), 0.0); // nearer to beam 1, dark at 3 m
+        assert_eq!(at(4.0, 3.0), 1.0);
+        assert_eq!(at(4.0, 1.0), 0.0);
+        assert_eq!(at(3.0, 6.0), 0.0); // outside the wedge
+    }
+
+    #[test]
+    fn angular_window_blends_with_triangular_weights() {
+        let mk = |angle_deg: f64, value: u8| SonarBeam {
+            stamp_s: 0.0,
+            angle_rad: angle_deg.to_radians(),
+            bin_size_m: 0.1,
+            first_bin_range_m: 0.0,
+            intensities: vec![value; 80],
+        };
+        let beams = vec![mk(0.0, 200), mk(2.0, 0)];
+        let poses: Vec<Se2> = beams
+            .iter()
+            .map(|b| Se2::new(0.0, 0.0, b.angle_rad))
+            .collect();
+        let cfg = ImageConfig {
+            cell_size_m: Some(0.05),
+            angular_half_width_rad: 2.0_f64.to_radians(),
+            ..config(Interpolation::AngularWindow)
+        };
+        let profiles = normalise_beams(&beams, &cfg);
+        let grid = rasterise(&beams, &poses, &profiles, cfg.cell_size_for(&beams), &cfg).unwrap();
+        // At bearing β (deg) the weights are 1 - β/2 and β/2, so the value is
+        // 1 - β/2; a cell averages the lines through it, i.e. about the value
+        // at the bearing of its centre; lines are 0.25 deg apart, so a cell's
+        // mean may be off by half a line spacing times the slope (0.06).
+        for deg in [0.3, 0.5, 1.0, 1.5, 1.8] {
+            let a = f64::to_radians(deg);
+            let (ix, iy) = grid.cell_of(7.0 * a.cos(), 7.0 * a.sin());
+            let (cx, cy) = grid.cell_centre_m(ix, iy);
+            let expected = 1.0 - cy.atan2(cx).to_degrees() / 2.0;
+            let got = f64::from(grid.cell(ix, iy));
+            assert!(
+                (got - expected).abs() < 0.07,
+                "{deg} deg: {got} vs {expected}"
+            );
+        }
+    }
+
+    #[test]
+    fn gaps_wider_than_the_wedge_limit_stay_empty_and_moving_origins_are_used() {
+        // Two beams 20 degrees apart: the wedge is not filled.
+        let mk = |angle_deg: f64| SonarBeam {
+            stamp_s: 0.0,
+            angle_rad: angle_deg.to_radians(),
+            bin_size_m: 0.1,
+            first_bin_range_m: 0.0,
+            intensities: vec![100; 50],
+        };
+        let beams = vec![mk(0.0), mk(20.0)];
+        // The second beam's transducer was 1 m further along y.
+        let poses = vec![
+            Se2::new(0.0, 0.0, 0.0),
+            Se2::new(0.0, 1.0, 20.0_f64.to_radians()),
+        ];
+        let cfg = config(Interpolation::AngularWindow);
+        let profiles = normalise_beams(&beams, &cfg);
+        let grid = rasterise(&beams, &poses, &profiles, cfg.cell_size_for(&beams), &cfg).unwrap();
+        let a = 10.0_f64.to_radians();
+        let (ix, iy) = grid.cell_of(4.0 * a.cos(), 4.0 * a.sin());
+        assert_eq!(grid.cell(ix, iy), 0.0);
+        let b = 20.0_f64.to_radians();
+        let (ix, iy) = grid.cell_of(4.0 * b.cos(), 1.0 + 4.0 * b.sin());
+        assert!(grid.cell(ix, iy) > 0.9);
+    }
+
+    #[test]
+    fn huge_images_are_refused() {
+        let beams = vec![SonarBeam {
+            stamp_s: 0.0,
+            angle_rad: 0.0,
+            bin_size_m: 1000.0,
+            first_bin_range_m: 0.0,
+            intensities: vec![1; 100],
+        }];
+        let poses = vec![Se2::new(0.0, 0.0, 0.7)];
+        let cfg = config(Interpolation::Nearest);
+        let profiles = normalise_beams(&beams, &cfg);
+        let err =
+            rasterise(&beams, &poses, &profiles, cfg.cell_size_for(&beams), &cfg).unwrap_err();
+        assert!(err.to_string().contains("cells"), "{err}");
+    }
+}

@@ -1,0 +1,442 @@
+//! The acoustic-image measurement model (paper section 5).
+//!
+//! A scan `S_k = {p_i}` (points in the scan's reference frame) is placed on
+//! the acoustic image `I_j` by the pose `x = image_from_scan` that maximises
+//!
+//! `s(x) = Σ_i I_j(x ⊕ p_i)`  (eq. 5),   `x* = argmax_x s(x)`  (eq. 6).
+//!
+//! [`match_scan`] searches the window that the prior allows in three steps:
+//! 1. [`search`]: branch-and-bound over a discretised window (cells in x and
+//!    y, an angle step that moves the farthest point by one cell), exact for
+//!    the score on the raster, with the max-pooled image pyramid as bounds;
+//!    a second search finds the best pose *separated* from the winner;
+//! 2. [`refine`]: Nelder-Mead from the best lattice pose on the score with `I`
+//!    interpolated from the samples ([`AcousticImage::fine_value_at`]): the
+//!    raster's bilinear lookup peaks on cell centres, so an estimate taken
+//!    from it snaps towards them by up to half a cell;
+//! 3. [`covariance`]: a quadratic fit of the raster score around `x*` and a
+//!    Laplace approximation give the covariance.
+//!
+//! Bad input (NaN points or prior, invalid window or config) is an `Err`;
+//! data that cannot be matched gives [`MatchOutcome::NoMatch`] with a
+//! [`NoMatchReason`]: too few points, an image without echoes, or no pose
+//! in the window that puts any point on an echo (e.g. a prior far outside
+//! the image).
+
+pub mod config;
+pub mod covariance;
+pub mod outcome;
+pub mod refine;
+pub mod search;
+
+pub use config::{MatcherConfig, SearchWindow};
+pub use outcome::{MatchOutcome, MatchQuality, MatchResult, MatchStats, NoMatchReason};
+
+use crate::error::FrontendError;
+use crate::image::AcousticImage;
+use echofield_graph::Se2;
+use nalgebra::{Point2, Vector3};
+
+/// `s(x)` of eq. (5): the sum of the image under the transformed points,
+/// with `I` interpolated from the samples ([`AcousticImage::fine_value_at`]).
+pub fn score(points: &[Point2<f64>], image: &AcousticImage, image_from_scan: &Se2) -> f64 {
+    let (s, c) = image_from_scan.rotation().angle().sin_cos();
+    let (tx, ty) = (image_from_scan.x(), image_from_scan.y());
+    points
+        .iter()
+        .map(|p| image.fine_value_at(c * p.x - s * p.y + tx, s * p.x + c * p.y + ty))
+        .sum()
+}
+
+/// `s(x)` on the raster (bilinear lookup, [`AcousticImage::value_at`]):
+/// what the coarse search maximises, and what the covariance is fitted to.
+pub fn raster_score(points: &[Point2<f64>], image: &AcousticImage, image_from_scan: &Se2) -> f64 {
+    let (s, c) = image_from_scan.rotation().angle().sin_cos();
+    let (tx, ty) = (image_from_scan.x(), image_from_scan.y());
+    points
+        .iter()
+        .map(|p| image.value_at(c * p.x - s * p.y + tx, s * p.x + c * p.y + ty))
+        .sum()
+}
+
+/// `s(x) / N`, 0 for an empty scan.
+pub fn mean_score(points: &[Point2<f64>], image: &AcousticImage, image_from_scan: &Se2) -> f64 {
+    if points.is_empty() {
+        0.0
+    } else {
+        score(points, image, image_from_scan) / points.len() as f64
+    }
+}
+
+/// Matches scan `points` (scan frame) against `image`, searching `window`
+/// around `prior` (`image_from_scan`). See the module doc for the method
+/// and the failure modes.
+pub fn match_scan(
+    points: &[Point2<f64>],
+    image: &AcousticImage,
+    prior: &Se2,
+    window: &SearchWindow,
+    config: &MatcherConfig,
+) -> Result<MatchOutcome, FrontendError> {
+    config.validate()?;
+    window.validate()?;
+    if !prior.is_finite() {
+        return Err(FrontendError::input("match", "prior", "pose is not finite"));
+    }
+    if let Some(i) = points
+        .iter()
+        .position(|p| !(p.x.is_finite() && p.y.is_finite()))
+    {
+        return Err(FrontendError::input(
+            format!("scan point {i}"),
+            "x/y",
+            "not finite",
+        ));
+    }
+    if points.len() < config.min_points {
+        return Ok(MatchOutcome::NoMatch {
+            reason: NoMatchReason::TooFewPoints {
+                points: points.len(),
+                required: config.min_points,
+            },
+        });
+    }
+    if image.is_empty() {
+        return Ok(MatchOutcome::NoMatch {
+            reason: NoMatchReason::EmptyImage,
+        });
+    }
+    let points = thin(points, config.max_points);
+    let cell_m = image.cell_size_m();
+    let ranges = points.iter().map(|p| p.coords.norm());
+    let max_range_m = ranges.clone().fold(0.0, f64::max).max(cell_m);
+    let rho_m = (ranges.map(|r| r * r).sum::<f64>() / points.len() as f64)
+        .sqrt()
+        .max(cell_m);
+    let angle_step_rad = config.angle_step_rad.unwrap_or(cell_m / max_range_m);
+    let disc = search::Discretisation {
+        angle_step_rad,
+        angle_steps: steps_within(window.theta_rad, angle_step_rad),
+        cells_x: steps_within(window.x_m, cell_m),
+        cells_y: steps_within(window.y_m, cell_m),
+    };
+    let problem = search::SearchProblem::new(&points, image, prior, &disc);
+    let mut stats = search::SearchStats::default();
+    let mut leaves = Vec::new();
+    let record = config.second_peak.then_some(&mut leaves);
+    let Some(best) = problem.best_leaf(None, None, &mut stats, record) else {
+        return Ok(MatchOutcome::NoMatch {
+            reason: NoMatchReason::NoOverlap,
+        });
+    };
+    let second_peak_ratio = if config.second_peak {
+        let exclusion = search::Exclusion {
+            centre: best,
+            cells: config.peak_separation_m / cell_m,
+            angle_steps: (config.peak_separation_rad / angle_step_rad).floor() as i32,
+        };
+        // The best leaf the first search saw outside the zone is a valid
+        // score to beat, which keeps the second search's pruning tight.
+        let seed = leaves
+            .iter()
+            .filter(|l| !exclusion.contains(l))
+            .max_by(|a, b| a.score.total_cmp(&b.score))
+            .copied();
+        problem
+            .best_leaf(seed, Some(&exclusion), &mut stats, None)
+            .map(|second| f64::from(second.score / best.score))
+    } else {
+        None
+    };
+    let coarse = best.pose(prior, &disc, cell_m);
+    // The refinement may not leave the window (plus the lattice's reach).
+    let bounds = refine::Bounds {
+        centre: *prior,
+        half_width: Vector3::new(
+            f64::from(disc.cells_x) * cell_m,
+            f64::from(disc.cells_y) * cell_m,
+            f64::from(disc.angle_steps) * angle_step_rad,
+        ),
+    };
+    let refined = refine::refine(
+        &points,
+        image,
+        &coarse,
+        &bounds,
+        rho_m,
+        0.5 * cell_m,
+        config.refine_iterations,
+    );
+    let steps = Vector3::new(cell_m, cell_m, cell_m / rho_m);
+    let bound = window.as_vector().sup(&steps);
+    let fit = covariance::fit_surface(
+        &points,
+        image,
+        &refined.pose,
+        &steps,
+        2,
+        &bound,
+        config.covariance_scale,
+    );
+    let pose = refined.pose;
+    let mean = mean_score(&points, image, &pose);
+    let inside = points
+        .iter()
+        .filter(|p| {
+            let q = pose.transform_point(p);
+            image.grid().contains(q.x, q.y)
+        })
+        .count();
+    Ok(MatchOutcome::Match(Box::new(MatchResult {
+        image_from_scan: pose,
+        score: mean * points.len() as f64,
+        quality: MatchQuality {
+            mean_intensity: mean,
+            inside_fraction: inside as f64 / points.len() as f64,
+            second_peak_ratio,
+            points: points.len(),
+            surface_fit_residual: fit.relative_fit_residual,
+        },
+        covariance: fit.covariance,
+        coarse,
+        stats: MatchStats {
+            angle_step_rad,
+            search_nodes: stats.nodes,
+            refine_iterations: refined.iterations,
+        },
+    })))
+}
+
+/// Number of whole steps within a half-width (0 for a zero half-width).
+fn steps_within(half_width: f64, step: f64) -> i32 {
+    (half_width / step).ceil().min(f64::from(1 << 20)) as i32
+}
+
+/// Every k-th point so at most `max` remain (all when already fewer).
+fn thin(points: &[Point2<f64>], max: usize) -> Vec<Point2<f64>> {
+    if points.len() <= max {
+        return points.to_vec();
+    }
+    let stride = points.len().div_ceil(max);
+    points.iter().step_by(stride).copied().collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::image::synthetic::{
+        RotationPath, SceneConfig, SyntheticRotation, Wall, simulate_rotation, static_rotation,
+    };
+    use crate::image::{Grid, ImageConfig};
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    fn image_of(rotation: &SyntheticRotation) -> AcousticImage {
+        AcousticImage::build(
+            &rotation.beams,
+            &rotation.reference_from_beams,
+            &ImageConfig::default(),
+        )
+        .unwrap()
+    }
+
+    fn pose_error(a: &Se2, b: &Se2) -> (f64, f64) {
+        let d = a.between(b);
+        (d.translation().norm(), d.theta().abs())
+    }
+
+    #[test]
+    fn scan_and_image_of_the_same_rotation_match_at_identity() {
+        // The paper's experiment (section 6) on a static and a moving sonar.
+        let scene = SceneConfig::default();
+        let moving = RotationPath {
+            world_from_start: Se2::new(-2.0, 1.0, 0.3),
+            velocity_mps: (0.45, 0.05),
+            yaw_rate_radps: 0.02,
+        };
+        for rotation in [
+            static_rotation(&scene, 4),
+            simulate_rotation(&scene, &moving, 5),
+        ] {
+            let image = image_of(&rotation);
+            let window = SearchWindow::new(1.0, 1.0, 10.0_f64.to_radians());
+            let outcome = match_scan(
+                &rotation.wall_points,
+                &image,
+                &Se2::new(0.3, -0.4, 0.05),
+                &window,
+                &MatcherConfig::default(),
+            )
+            .unwrap();
+            let m = outcome.matched().expect("a match");
+            let (dt, dtheta) = pose_error(&m.image_from_scan, &Se2::identity());
+            assert!(dt < 0.05, "translation error {dt} m");
+            assert!(dtheta < 0.5_f64.to_radians(), "angle error {dtheta} rad");
+            assert!(m.quality.mean_intensity > 0.3, "{:?}", m.quality);
+            assert!(m.quality.inside_fraction > 0.99);
+            let ratio = m.quality.second_peak_ratio.unwrap();
+            assert!(ratio < 0.8, "second peak ratio {ratio}");
+        }
+    }
+
+    #[test]
+    fn known_offsets_between_two_rotations_are_recovered() {
+        let scene = SceneConfig::default();
+        let a = static_rotation(&scene, 11);
+        let image = image_of(&a);
+        let mut rng = ChaCha8Rng::seed_from_u64(21);
+        for trial in 0..8 {
+            let world_from_b = Se2::new(
+                rng.random_range(-2.5..2.5),
+                rng.random_range(-2.0..2.0),
+                rng.random_range(-0.25..0.25),
+            );
+            let b = simulate_rotation(&scene, &RotationPath::fixed(world_from_b), 100 + trial);
+            let truth = a.world_from_reference.between(&b.world_from_reference);
+            let prior = truth.compose(&Se2::new(
+                rng.random_range(-1.5..1.5),
+                rng.random_range(-1.5..1.5),
+                rng.random_range(-0.15..0.15),
+            ));
+            let window = SearchWindow::new(2.0, 2.0, 0.2);
+            let outcome = match_scan(
+                &b.wall_points,
+                &image,
+                &prior,
+                &window,
+                &MatcherConfig::default(),
+            )
+            .unwrap();
+            let m = outcome.matched().expect("a match");
+            let (dt, dtheta) = pose_error(&m.image_from_scan, &truth);
+            assert!(
+                dt < 0.1 && dtheta < 1.0_f64.to_radians(),
+                "trial {trial}: {dt} m, {dtheta} rad"
+            );
+            // The covariance is positive definite and says centimetres.
+            let eig = m.covariance.symmetric_eigen().eigenvalues;
+            assert!(eig.min() > 0.0, "{}", m.covariance);
+            assert!(m.covariance[(0, 0)].sqrt() < 0.2 && m.covariance[(1, 1)].sqrt() < 0.2);
+        }
+    }
+
+    #[test]
+    fn a_single_wall_leaves_the_along_wall_direction_uncertain() {
+        let scene = SceneConfig {
+            walls: vec![Wall::new(-30.0, 6.0, 30.0, 6.0, 1.0)],
+            ..SceneConfig::default()
+        };
+        let rotation = static_rotation(&scene, 2);
+        let image = image_of(&rotation);
+        let window = SearchWindow::new(2.0, 2.0, 0.1);
+        let outcome = match_scan(
+            &rotation.wall_points,
+            &image,
+            &Se2::identity(),
+            &window,
+            &MatcherConfig::default(),
+        )
+        .unwrap();
+        let m = outcome.matched().unwrap();
+        // Across the wall (y) it is sharp, along it (x) it is not.
+        assert!((m.image_from_scan.y()).abs() < 0.05);
+        let (sx, sy) = (m.covariance[(0, 0)].sqrt(), m.covariance[(1, 1)].sqrt());
+        assert!(sx > 5.0 * sy, "σx {sx}, σy {sy}");
+        // And the second peak along the wall is nearly as good as the first.
+        assert!(m.quality.second_peak_ratio.unwrap() > 0.9);
+    }
+
+    #[test]
+    fn unmatchable_input_gives_no_match_or_errors() {
+        let rotation = static_rotation(&SceneConfig::default(), 3);
+        let image = image_of(&rotation);
+        let window = SearchWindow::new(1.0, 1.0, 0.1);
+        let cfg = MatcherConfig::default();
+        let few = &rotation.wall_points[..5];
+        let out = match_scan(few, &image, &Se2::identity(), &window, &cfg).unwrap();
+        assert_eq!(
+            out,
+            MatchOutcome::NoMatch {
+                reason: NoMatchReason::TooFewPoints {
+                    points: 5,
+                    required: 10
+                }
+            }
+        );
+        // Prior 500 m away: nothing in the window overlaps.
+        let far = Se2::new(500.0, 0.0, 0.0);
+        let out = match_scan(&rotation.wall_points, &image, &far, &window, &cfg).unwrap();
+        assert_eq!(
+            out,
+            MatchOutcome::NoMatch {
+                reason: NoMatchReason::NoOverlap
+            }
+        );
+        // An image without echoes.
+        let empty = AcousticImage::from_grid(Grid::zeros(0.0, 0.0, 0.2, 10, 10), 3);
+        let out = match_scan(
+            &rotation.wall_points,
+            &empty,
+            &Se2::identity(),
+            &window,
+            &cfg,
+        )
+        .unwrap();
+        assert_eq!(
+            out,
+            MatchOutcome::NoMatch {
+                reason: NoMatchReason::EmptyImage
+            }
+        );
+        // NaN in the scan, the prior or the window: errors naming it.
+        let mut points = rotation.wall_points.clone();
+        points[17].x = f64::NAN;
+        let err = match_scan(&points, &image, &Se2::identity(), &window, &cfg).unwrap_err();
+        assert!(err.to_string().contains("scan point 17"), "{err}");
+        let err = match_scan(
+            &rotation.wall_points,
+            &image,
+            &Se2::new(f64::NAN, 0.0, 0.0),
+            &window,
+            &cfg,
+        )
+        .unwrap_err();
+        assert!(err.to_string().contains("prior"), "{err}");
+        let bad_window = SearchWindow::new(1.0, f64::INFINITY, 0.1);
+        assert!(
+            match_scan(
+                &rotation.wall_points,
+                &image,
+                &Se2::identity(),
+                &bad_window,
+                &cfg
+            )
+            .is_err()
+        );
+        let bad_cfg = MatcherConfig {
+            covariance_scale: 0.0,
+            ..MatcherConfig::default()
+        };
+        let err = match_scan(
+            &rotation.wall_points,
+            &image,
+            &Se2::identity(),
+            &window,
+            &bad_cfg,
+        )
+        .unwrap_err();
+        assert!(err.to_string().contains("covariance_scale"), "{err}");
+    }
+
+    #[test]
+    fn score_is_eq_5() {
+        let mut grid = Grid::zeros(0.0, 0.0, 1.0, 4, 4);
+        grid.values_mut()[4 + 2] = 1.0; // cell (2, 1), centre (2.5, 1.5)
+        let image = AcousticImage::from_grid(grid, 2);
+        let points = [Point2::new(0.5, 0.0), Point2::new(0.0, 0.0)];
+        // x ⊕ p: rotate by 90° then translate (2.5, 1.0): p0 -> (2.5, 1.5).
+        let x = Se2::new(2.5, 1.0, std::f64::consts::FRAC_PI_2);
+        assert!((score(&points, &image, &x) - 1.5).abs() < 1e-9);
+        assert!((mean_score(&points, &image, &x) - 0.75).abs() < 1e-9);
+    }
+}

@@ -1,0 +1,191 @@
+//! Covariance of a match from the shape of the score surface.
+//!
+//! The score `s` of eq. (5) on the raster is evaluated on a 5 x 5 x 5 lattice around the
+//! estimate `x*` (steps: one cell in x and y, and the angle that moves a
+//! point at the scan's RMS range by one cell), and a full quadratic
+//! `s(x* + δ) ≈ c + gᵀδ + ½ δᵀ H δ` is fitted by least squares. Reading
+//! `exp(s(x) / τ)` as the likelihood of the pose (`τ` is
+//! `MatcherConfig::covariance_scale`, intensity units), the Laplace
+//! approximation gives the covariance `Σ = τ (-H)⁻¹`. Because `s` sums `N`
+//! per-point terms, `Σ` shrinks like `1/N`, as for independent measurements.
+//!
+//! Directions in which the surface is flat or curves upwards (a corridor, a
+//! single wall, a saddle) are clamped: their variance is at most the squared
+//! half-width of the search window, i.e. the match adds no information
+//! there beyond the prior's window. The clamp works on eigenvalues in the
+//! lattice-normalised coordinates (each axis divided by its step), where
+//! metres and radians are commensurable.
+
+use crate::image::AcousticImage;
+use echofield_graph::Se2;
+use nalgebra::{Matrix3, Point2, SMatrix, SVector, Vector3};
+
+/// The fitted surface and the covariance derived from it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SurfaceFit {
+    /// Hessian of `s` at the estimate, in (x m, y m, θ rad) units.
+    pub hessian: Matrix3<f64>,
+    /// Covariance of `(x, y, θ)`, m² and rad².
+    pub covariance: Matrix3<f64>,
+    /// RMS residual of the quadratic fit relative to the score's range over
+    /// the lattice (0 = perfectly quadratic).
+    pub relative_fit_residual: f64,
+}
+
+/// Fits the quadratic around `pose` and derives the covariance.
+///
+/// `steps` are the lattice steps `(m, m, rad)` and `radius` the lattice's
+/// half-size in steps (2 for the covariance: 5 x 5 x 5 samples); `window`
+/// the search half-widths `(m, m, rad)` that bound the variance; `tau` the
+/// scale.
+pub fn fit_surface(
+    points: &[Point2<f64>],
+    image: &AcousticImage,
+    pose: &Se2,
+    steps: &Vector3<f64>,
+    radius: i32,
+    window: &Vector3<f64>,
+    tau: f64,
+) -> SurfaceFit {
+    let mut normal = SMatrix::<f64, 10, 10>::zeros();
+    let mut rhs = SVector::<f64, 10>::zeros();
+    let mut samples = Vec::with_capacity(125);
+    let radius = radius.max(1);
+    for a in -radius..=radius {
+        for b in -radius..=radius {
+            for c in -radius..=radius {
+                let u = Vector3::new(f64::from(a), f64::from(b), f64::from(c));
+                let delta = u.component_mul(steps);
+                let p = Se2::new(
+                    pose.x() + delta.x,
+                    pose.y() + delta.y,
+                    pose.theta() + delta.z,
+                );
+                let s = super::raster_score(points, image, &p);
+                let phi = features(&u);
+                normal += phi * phi.transpose();
+                rhs += phi * s;
+                samples.push((phi, s));
+            }
+        }
+    }
+    // The lattice is symmetric and full, so the normal matrix is invertible.
+    let beta = normal
+        .cholesky()
+        .map(|ch| ch.solve(&rhs))
+        .unwrap_or_else(SVector::zeros);
+    let (mut lo, mut hi, mut sq) = (f64::MAX, f64::MIN, 0.0);
+    for (phi, s) in &samples {
+        let r = s - phi.dot(&beta);
+        sq += r * r;
+        lo = lo.min(*s);
+        hi = hi.max(*s);
+    }
+    let relative_fit_residual = if hi > lo {
+        (sq / samples.len() as f64).sqrt() / (hi - lo)
+    } else {
+        0.0
+    };
+    // Hessian in normalised coordinates: s = ... + β4 u1² + ... + β7 u1u2 ...
+    let hn = Matrix3::new(
+        2.0 * beta[4],
+        beta[7],
+        beta[8],
+        beta[7],
+        2.0 * beta[5],
+        beta[9],
+        beta[8],
+        beta[9],
+        2.0 * beta[6],
+    );
+    let scale = Matrix3::from_diagonal(&steps.map(|s| 1.0 / s));
+    let hessian = scale * hn * scale;
+    // Information in normalised coordinates, eigenvalues clamped so that
+    // no direction has a variance larger than the window.
+    let window_n = window.component_div(steps).max();
+    let min_information = 1.0 / (window_n * window_n);
+    let info = -hn / tau;
+    let eig = info.symmetric_eigen();
+    let inv_values = eig.eigenvalues.map(|l| 1.0 / l.max(min_information));
+    let cov_n =
+        eig.eigenvectors * Matrix3::from_diagonal(&inv_values) * eig.eigenvectors.transpose();
+    let step_diag = Matrix3::from_diagonal(steps);
+    let covariance = step_diag * cov_n * step_diag;
+    SurfaceFit {
+        hessian,
+        covariance: 0.5 * (covariance + covariance.transpose()),
+        relative_fit_residual,
+    }
+}
+
+/// `[1, u1, u2, u3, u1², u2², u3², u1u2, u1u3, u2u3]`.
+fn features(u: &Vector3<f64>) -> SVector<f64, 10> {
+    SVector::<f64, 10>::from_column_slice(&[
+        1.0,
+        u.x,
+        u.y,
+        u.z,
+        u.x * u.x,
+        u.y * u.y,
+        u.z * u.z,
+        u.x * u.y,
+        u.x * u.z,
+        u.y * u.z,
+    ])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::image::Grid;
+
+    /// An image whose value is a known quadratic of x and y near the origin
+    /// (a paraboloid), so the score of a one-point scan is known exactly.
+    fn paraboloid(ax: f64, ay: f64) -> AcousticImage {
+        let n = 200;
+        let mut grid = Grid::zeros(-10.0, -10.0, 0.1, n, n);
+        for iy in 0..n as i64 {
+            for ix in 0..n as i64 {
+                let (x, y) = grid.cell_centre_m(ix, iy);
+                let v = 1.0 - ax * x * x - ay * y * y;
+                grid.values_mut()[iy as usize * n + ix as usize] = v.max(0.0) as f32;
+            }
+        }
+        AcousticImage::from_grid(grid, 2)
+    }
+
+    #[test]
+    fn recovers_the_curvature_of_a_paraboloid() {
+        // One point at the scan origin: s(x) = 1 - 0.5 x² - 2 y², flat in θ.
+        let image = paraboloid(0.5, 2.0);
+        let points = [Point2::new(0.0, 0.0)];
+        // Sample on cell centres so bilinear interpolation is exact.
+        let pose = Se2::new(-0.05, -0.05, 0.0);
+        let steps = Vector3::new(0.1, 0.1, 0.01);
+        let window = Vector3::new(1.0, 1.0, 0.1);
+        let fit = fit_surface(&points, &image, &pose, &steps, 2, &window, 0.5);
+        assert!((fit.hessian[(0, 0)] + 1.0).abs() < 1e-4, "{}", fit.hessian);
+        assert!((fit.hessian[(1, 1)] + 4.0).abs() < 1e-4, "{}", fit.hessian);
+        assert!(fit.hessian[(0, 1)].abs() < 1e-4);
+        assert!(fit.relative_fit_residual < 1e-6);
+        // Σ = τ (-H)⁻¹ = 0.5 / 1 and 0.5 / 4 in x and y.
+        assert!(
+            (fit.covariance[(0, 0)] - 0.5).abs() < 1e-4,
+            "{}",
+            fit.covariance
+        );
+        assert!(
+            (fit.covariance[(1, 1)] - 0.125).abs() < 1e-4,
+            "{}",
+            fit.covariance
+        );
+        // θ is unobservable from one point: its variance is the clamp, the
+        // largest normalised window (1.0 / 0.1 = 10 steps) squared, in rad².
+        let clamp = (10.0 * 0.01_f64).powi(2);
+        assert!(
+            (fit.covariance[(2, 2)] - clamp).abs() < 1e-9,
+            "{}",
+            fit.covariance
+        );
+    }
+}

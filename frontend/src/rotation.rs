@@ -1,0 +1,351 @@
+//! Rotation assembly: grouping the beam stream into 360° sonar rotations.
+//!
+//! The paper builds one range scan `S_k` and one acoustic image `I_k` per
+//! 360° MSIS rotation (section 3). A mechanically scanned head reports one
+//! transducer angle per beam; this module unwraps those angles and cuts the
+//! stream into units the rest of the frontend processes one at a time.
+//!
+//! Behaviour for each case (each has a test below):
+//! - **Continuous rotation, wrap-around.** Steps between consecutive beams are
+//!   wrapped to (-π, π] and accumulated; a rotation is complete when the
+//!   accumulated angle of the next beam would reach 2π (minus half a median
+//!   step), so a head with 200 steps per turn gives rotations of 200 beams, and
+//!   the next rotation starts at the first beam that repeats an angle. A unit
+//!   cut for any reason below whose beams already cover 2π (span plus one
+//!   median step) is full too, e.g. the last 200 beams of the data.
+//! - **Direction reversals and sector scans.** A step whose sign opposes the
+//!   unit's direction (zero steps are ignored), or an angular jump larger than
+//!   `max_gap_beam_periods` median steps (a sector head's fly-back), ends the
+//!   current unit. A unit that both starts and ends at such a reversal is one
+//!   sweep of a sector ([`RotationKind::SectorSweep`]) and is kept like a full
+//!   rotation. A unit that ends at a reversal but did not start at one (the
+//!   first sweep after the start of the data, or a continuous rotation whose
+//!   direction changes) is partial.
+//! - **Time gaps.** A stamp difference larger than `max_gap_beam_periods` beam
+//!   periods (the median stamp difference, or `beam_period_s`) ends the unit;
+//!   the next unit starts after the gap. The unit cut by the gap is partial.
+//! - **Changes of bin size, bin count or first-bin range** end the unit there;
+//!   the unit cut by the change is partial.
+//! - **Partial units** (cut by a gap, a change, a non-sweep reversal, or the
+//!   end of the data) are dropped, unless `keep_partial` is set and they cover
+//!   at least `min_partial_coverage_rad`; then they are returned with
+//!   [`RotationKind::Partial`].
+//!
+//! Stamps must be non-decreasing and finite, angles finite; otherwise an
+//! error names the beam.
+
+use crate::error::FrontendError;
+use crate::sensors::SonarBeam;
+use echofield_graph::se2::wrap_angle;
+use serde::{Deserialize, Serialize};
+use std::f64::consts::{PI, TAU};
+use std::ops::Range;
+
+/// Parameters of rotation assembly.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RotationConfig {
+    /// A stamp difference between consecutive beams longer than this many
+    /// beam periods is a gap and ends the current unit; an angular step
+    /// larger than this many median angular steps is a jump (a sector
+    /// fly-back) and ends it too. Dimensionless, > 1. Default 3.
+    pub max_gap_beam_periods: f64,
+    /// The beam period in seconds. `None` (the default) derives it as the
+    /// median of the positive stamp differences.
+    pub beam_period_s: Option<f64>,
+    /// Keep partial units (see the module doc) instead of dropping them.
+    /// Default false.
+    pub keep_partial: bool,
+    /// With `keep_partial`, the smallest angular coverage (radians) a partial
+    /// unit must have to be kept. Default π (half a turn).
+    pub min_partial_coverage_rad: f64,
+}
+
+impl Default for RotationConfig {
+    fn default() -> Self {
+        Self {
+            max_gap_beam_periods: 3.0,
+            beam_period_s: None,
+            keep_partial: false,
+            min_partial_coverage_rad: PI,
+        }
+    }
+}
+
+impl RotationConfig {
+    pub fn validate(&self) -> Result<(), FrontendError> {
+        if !(self.max_gap_beam_periods.is_finite() && self.max_gap_beam_periods > 1.0) {
+            return Err(FrontendError::config(
+                "max_gap_beam_periods",
+                format!("must be finite and > 1, got {}", self.max_gap_beam_periods),
+            ));
+        }
+        if let Some(period) = self.beam_period_s
+            && !(period.is_finite() && period > 0.0)
+        {
+            return Err(FrontendError::config(
+                "beam_period_s",
+                format!("must be finite and > 0, got {period}"),
+            ));
+        }
+        if !(self.min_partial_coverage_rad.is_finite()
+            && self.min_partial_coverage_rad > 0.0
+            && self.min_partial_coverage_rad <= TAU)
+        {
+            return Err(FrontendError::config(
+                "min_partial_coverage_rad",
+                format!("must be in (0, 2π], got {}", self.min_partial_coverage_rad),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// What kind of unit a [`Rotation`] is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RotationKind {
+    /// A full 360° turn.
+    Full,
+    /// One sweep of a sector scan, from one reversal to the next.
+    SectorSweep,
+    /// Less than a full turn (only returned with `keep_partial`).
+    Partial,
+}
+
+/// One rotation: a contiguous run of beams processed as one scan and image.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Rotation {
+    /// Position in the returned list (0, 1, 2, ...).
+    pub index: usize,
+    /// Indices into the beam slice given to [`assemble_rotations`].
+    pub beams: Range<usize>,
+    /// Stamp of the first beam, seconds.
+    pub start_s: f64,
+    /// Stamp of the last beam, seconds.
+    pub end_s: f64,
+    /// The central time `(start_s + end_s) / 2`: the paper's central pose
+    /// (section 4) is the vehicle pose at this time.
+    pub reference_stamp_s: f64,
+    /// Angle swept, radians: the unwrapped span from the first to the last
+    /// beam plus one median step (each beam stands for one step of angle).
+    pub coverage_rad: f64,
+    pub kind: RotationKind,
+}
+
+/// Why a unit ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Boundary {
+    Start,
+    Full,
+    Reversal,
+    Gap,
+    GeometryChange,
+    End,
+}
+
+/// Groups `beams` (time-ordered) into rotations; see the module doc for
+/// the rules. Errors on invalid config, an empty slice, a non-finite stamp
+/// or angle, decreasing stamps, a non-positive bin size, or when no unit
+/// survives.
+pub fn assemble_rotations(
+    beams: &[SonarBeam],
+    config: &RotationConfig,
+) -> Result<Vec<Rotation>, FrontendError> {
+    config.validate()?;
+    if beams.is_empty() {
+        return Err(FrontendError::insufficient(
+            "rotation assembly",
+            "no sonar beams",
+        ));
+    }
+    check_beams(beams)?;
+    let limits = Limits::new(beams, config);
+    let mut rotations = Vec::new();
+    for unit in cut_units(beams, &limits) {
+        let coverage_rad = (unit.span_rad + limits.step_rad).min(TAU);
+        let full = unit.ended_by == Boundary::Full
+            || unit.span_rad + limits.step_rad >= TAU - 0.5 * limits.step_rad;
+        let kind = match (unit.started_by, unit.ended_by) {
+            _ if full => RotationKind::Full,
+            (Boundary::Reversal, Boundary::Reversal) => RotationKind::SectorSweep,
+            _ => RotationKind::Partial,
+        };
+        let keep = kind != RotationKind::Partial
+            || (config.keep_partial && coverage_rad >= config.min_partial_coverage_rad);
+        if keep && unit.beams.len() >= 2 {
+            let start_s = beams[unit.beams.start].stamp_s;
+            let end_s = beams[unit.beams.end - 1].stamp_s;
+            rotations.push(Rotation {
+                index: rotations.len(),
+                beams: unit.beams,
+                start_s,
+                end_s,
+                reference_stamp_s: 0.5 * (start_s + end_s),
+                coverage_rad,
+                kind,
+            });
+        }
+    }
+    if rotations.is_empty() {
+        return Err(FrontendError::insufficient(
+            "rotation assembly",
+            format!(
+                "no complete rotation or sector sweep in {} beams (set keep_partial to keep partial ones)",
+                beams.len()
+            ),
+        ));
+    }
+    Ok(rotations)
+}
+
+/// The thresholds derived from the stream: median angular step, largest
+/// allowed time and angle steps.
+struct Limits {
+    step_rad: f64,
+    max_gap_s: f64,
+    max_step_rad: f64,
+}
+
+impl Limits {
+    fn new(beams: &[SonarBeam], config: &RotationConfig) -> Self {
+        let beam_period_s = config
+            .beam_period_s
+            .or_else(|| median(beams.windows(2).map(|w| w[1].stamp_s - w[0].stamp_s)))
+            .unwrap_or(f64::INFINITY);
+        let step_rad = median(
+            beams
+                .windows(2)
+                .map(|w| wrap_angle(w[1].angle_rad - w[0].angle_rad).abs()),
+        )
+        .unwrap_or(0.0);
+        Self {
+            step_rad,
+            max_gap_s: config.max_gap_beam_periods * beam_period_s,
+            max_step_rad: if step_rad > 0.0 {
+                config.max_gap_beam_periods * step_rad
+            } else {
+                f64::INFINITY
+            },
+        }
+    }
+}
+
+/// A run of beams between two boundaries.
+struct Unit {
+    beams: Range<usize>,
+    started_by: Boundary,
+    ended_by: Boundary,
+    /// Unwrapped angle from the first to the last beam, absolute, radians.
+    span_rad: f64,
+}
+
+/// Cuts the stream at every boundary (see the module doc).
+fn cut_units(beams: &[SonarBeam], limits: &Limits) -> Vec<Unit> {
+    let mut units = Vec::new();
+    let (mut start, mut started_by) = (0, Boundary::Start);
+    let (mut cumulative_rad, mut direction) = (0.0, 0.0);
+    for i in 1..beams.len() {
+        let (prev, beam) = (&beams[i - 1], &beams[i]);
+        let step = wrap_angle(beam.angle_rad - prev.angle_rad);
+        let reversal = step.abs() > limits.max_step_rad
+            || (step != 0.0 && direction != 0.0 && step.signum() != direction);
+        let boundary = if beam.stamp_s - prev.stamp_s > limits.max_gap_s {
+            Some(Boundary::Gap)
+        } else if !same_geometry(prev, beam) {
+            Some(Boundary::GeometryChange)
+        } else if reversal {
+            Some(Boundary::Reversal)
+        } else {
+            cumulative_rad += step;
+            if direction == 0.0 && step != 0.0 {
+                direction = step.signum();
+            }
+            (cumulative_rad.abs() >= TAU - 0.5 * limits.step_rad).then_some(Boundary::Full)
+        };
+        let Some(ended_by) = boundary else {
+            continue;
+        };
+        // A full turn ends before beam i, which repeats the first angle.
+        let last_step = if ended_by == Boundary::Full {
+            step
+        } else {
+            0.0
+        };
+        units.push(Unit {
+            beams: start..i,
+            started_by,
+            ended_by,
+            span_rad: (cumulative_rad - last_step).abs(),
+        });
+        (start, started_by, cumulative_rad) = (i, ended_by, 0.0);
+        if ended_by != Boundary::Full {
+            direction = 0.0;
+        }
+    }
+    units.push(Unit {
+        beams: start..beams.len(),
+        started_by,
+        ended_by: Boundary::End,
+        span_rad: cumulative_rad.abs(),
+    });
+    units
+}
+
+fn check_beams(beams: &[SonarBeam]) -> Result<(), FrontendError> {
+    for (i, beam) in beams.iter().enumerate() {
+        let record = || format!("beam {i}");
+        if !beam.stamp_s.is_finite() {
+            return Err(FrontendError::input(record(), "stamp_s", "not finite"));
+        }
+        if !beam.angle_rad.is_finite() {
+            return Err(FrontendError::input(record(), "angle_rad", "not finite"));
+        }
+        if !(beam.bin_size_m.is_finite() && beam.bin_size_m > 0.0) {
+            return Err(FrontendError::input(
+                record(),
+                "bin_size_m",
+                format!("must be finite and > 0, got {}", beam.bin_size_m),
+            ));
+        }
+        if !beam.first_bin_range_m.is_finite() {
+            return Err(FrontendError::input(
+                record(),
+                "first_bin_range_m",
+                "not finite",
+            ));
+        }
+        if i > 0 && beam.stamp_s < beams[i - 1].stamp_s {
+            return Err(FrontendError::input(
+                record(),
+                "stamp_s",
+                format!(
+                    "{} s is earlier than the previous beam's {} s",
+                    beam.stamp_s,
+                    beams[i - 1].stamp_s
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+fn same_geometry(a: &SonarBeam, b: &SonarBeam) -> bool {
+    a.intensities.len() == b.intensities.len()
+        && (a.bin_size_m - b.bin_size_m).abs() <= 1e-9 * a.bin_size_m
+        && (a.first_bin_range_m - b.first_bin_range_m).abs() <= 1e-9
+}
+
+/// Median of the positive values, `None` if there are none.
+fn median(values: impl Iterator<Item = f64>) -> Option<f64> {
+    let mut v: Vec<f64> = values.filter(|x| *x > 0.0).collect();
+    if v.is_empty() {
+        return None;
+    }
+    let mid = v.len() / 2;
+    let (_, m, _) = v.select_nth_unstable_by(mid, f64::total_cmp);
+    Some(*m)
+}
+
+#[cfg(test)]
+mod tests;

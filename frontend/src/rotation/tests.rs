@@ -1,0 +1,290 @@
+use super::*;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+const STEP_RAD: f64 = TAU / 200.0;
+const PERIOD_S: f64 = 0.068;
+
+fn beam(stamp_s: f64, angle_rad: f64) -> SonarBeam {
+    SonarBeam {
+        stamp_s,
+        angle_rad,
+        bin_size_m: 0.1,
+        first_bin_range_m: 0.0,
+        intensities: vec![0; 50],
+    }
+}
+
+/// Beams at a regular period with the given transducer angles.
+fn beams_from_angles(angles: impl IntoIterator<Item = f64>) -> Vec<SonarBeam> {
+    angles
+        .into_iter()
+        .enumerate()
+        .map(|(i, a)| beam(100.0 + i as f64 * PERIOD_S, a))
+        .collect()
+}
+
+/// A continuously rotating head: `n` beams from `start_rad`, `sign` = ±1,
+/// angles reported wrapped to (-π, π] as real heads do.
+fn continuous(n: usize, start_rad: f64, sign: f64) -> Vec<SonarBeam> {
+    beams_from_angles((0..n).map(|i| wrap_angle(start_rad + sign * i as f64 * STEP_RAD)))
+}
+
+fn ranges(rotations: &[Rotation]) -> Vec<Range<usize>> {
+    rotations.iter().map(|r| r.beams.clone()).collect()
+}
+
+#[test]
+fn continuous_rotation_wraps_around_pi_into_200_beam_rotations() {
+    // Starts at 3 rad, so every rotation crosses the ±π wrap.
+    let beams = continuous(1000, 3.0, 1.0);
+    let rotations = assemble_rotations(&beams, &RotationConfig::default()).unwrap();
+    assert_eq!(
+        ranges(&rotations),
+        vec![0..200, 200..400, 400..600, 600..800, 800..1000]
+    );
+    for (k, r) in rotations.iter().enumerate() {
+        assert_eq!(r.index, k);
+        assert_eq!(r.kind, RotationKind::Full);
+        assert!((r.coverage_rad - TAU).abs() < 1e-9);
+        assert_eq!(r.start_s, beams[r.beams.start].stamp_s);
+        assert_eq!(r.end_s, beams[r.beams.end - 1].stamp_s);
+        assert!((r.reference_stamp_s - 0.5 * (r.start_s + r.end_s)).abs() < 1e-12);
+    }
+}
+
+#[test]
+fn clockwise_rotation_with_timing_jitter_gives_the_same_boundaries() {
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    let mut beams = continuous(600, -1.0, -1.0);
+    for b in &mut beams {
+        b.stamp_s += rng.random_range(-0.01..0.01);
+    }
+    let rotations = assemble_rotations(&beams, &RotationConfig::default()).unwrap();
+    assert_eq!(ranges(&rotations), vec![0..200, 200..400, 400..600]);
+}
+
+#[test]
+fn partial_last_rotation_is_dropped_by_default_and_kept_on_request() {
+    let beams = continuous(520, 0.0, 1.0); // 2 rotations + 120 beams (216°)
+    let default = assemble_rotations(&beams, &RotationConfig::default()).unwrap();
+    assert_eq!(ranges(&default), vec![0..200, 200..400]);
+
+    let keep = RotationConfig {
+        keep_partial: true,
+        ..RotationConfig::default()
+    };
+    let kept = assemble_rotations(&beams, &keep).unwrap();
+    assert_eq!(ranges(&kept), vec![0..200, 200..400, 400..520]);
+    assert_eq!(kept[2].kind, RotationKind::Partial);
+    assert!((kept[2].coverage_rad - 120.0 * STEP_RAD).abs() < 1e-9);
+
+    let too_small = RotationConfig {
+        keep_partial: true,
+        min_partial_coverage_rad: 1.5 * PI,
+        ..RotationConfig::default()
+    };
+    assert_eq!(
+        ranges(&assemble_rotations(&beams, &too_small).unwrap()),
+        vec![0..200, 200..400]
+    );
+}
+
+#[test]
+fn a_time_gap_drops_the_cut_rotation_and_restarts_after_it() {
+    let mut beams = continuous(800, 0.5, 1.0);
+    for b in &mut beams[350..] {
+        b.stamp_s += 10.6; // the St Pere log has one gap of this length
+    }
+    let rotations = assemble_rotations(&beams, &RotationConfig::default()).unwrap();
+    assert_eq!(ranges(&rotations), vec![0..200, 350..550, 550..750]);
+    // A gap just under the limit does not split.
+    let mut beams = continuous(400, 0.5, 1.0);
+    for b in &mut beams[100..] {
+        b.stamp_s += 1.9 * PERIOD_S; // 2.9 periods between beams 99 and 100
+    }
+    let rotations = assemble_rotations(&beams, &RotationConfig::default()).unwrap();
+    assert_eq!(ranges(&rotations), vec![0..200, 200..400]);
+}
+
+#[test]
+fn back_and_forth_sector_scan_gives_one_unit_per_sweep() {
+    // ±45° sector, 50 steps each way, reversing at each end.
+    let half = 25.0 * STEP_RAD;
+    let sweep_up: Vec<f64> = (0..=50).map(|i| -half + i as f64 * STEP_RAD).collect();
+    let mut angles = Vec::new();
+    for s in 0..5 {
+        let sweep: Vec<f64> = if s % 2 == 0 {
+            sweep_up.clone()
+        } else {
+            sweep_up.iter().rev().copied().collect()
+        };
+        // The end angle is not repeated when the head turns back.
+        angles.extend(if s == 0 { &sweep[..] } else { &sweep[1..] });
+    }
+    let beams = beams_from_angles(angles);
+    assert_eq!(beams.len(), 251);
+    let rotations = assemble_rotations(&beams, &RotationConfig::default()).unwrap();
+    // The first sweep starts at the start of the data, so it is partial and
+    // dropped; each later sweep runs from one reversal to the next, except
+    // the last, which ends with the data.
+    assert_eq!(ranges(&rotations), vec![51..101, 101..151, 151..201]);
+    for r in &rotations {
+        assert_eq!(r.kind, RotationKind::SectorSweep);
+        assert!((r.coverage_rad - 50.0 * STEP_RAD).abs() < 1e-9);
+    }
+}
+
+#[test]
+fn fly_back_sector_scan_splits_at_each_jump() {
+    // 0..90° forward, then jump back to 0.
+    let angles = (0..4).flat_map(|_| (0..50).map(|i| i as f64 * STEP_RAD));
+    let beams = beams_from_angles(angles);
+    let rotations = assemble_rotations(&beams, &RotationConfig::default()).unwrap();
+    assert_eq!(ranges(&rotations), vec![50..100, 100..150]);
+    assert!(
+        rotations
+            .iter()
+            .all(|r| r.kind == RotationKind::SectorSweep)
+    );
+}
+
+#[test]
+fn direction_reversal_in_a_continuous_rotation_drops_the_cut_turn() {
+    let mut angles: Vec<f64> = (0..300).map(|i| i as f64 * STEP_RAD).collect();
+    let turn_rad = 299.0 * STEP_RAD;
+    angles.extend((1..=400).map(|i| turn_rad - i as f64 * STEP_RAD));
+    let beams = beams_from_angles(angles.into_iter().map(wrap_angle));
+    let rotations = assemble_rotations(&beams, &RotationConfig::default()).unwrap();
+    // 0..200 full; 200..300 ends at the reversal but did not start at one:
+    // partial, dropped; then two clockwise turns.
+    assert_eq!(ranges(&rotations), vec![0..200, 300..500, 500..700]);
+    assert!(rotations.iter().all(|r| r.kind == RotationKind::Full));
+}
+
+#[test]
+fn a_change_of_bin_count_or_bin_size_splits_the_rotation() {
+    let mut beams = continuous(700, 0.0, 1.0);
+    for b in &mut beams[250..] {
+        b.intensities = vec![0; 40];
+    }
+    let rotations = assemble_rotations(&beams, &RotationConfig::default()).unwrap();
+    assert_eq!(ranges(&rotations), vec![0..200, 250..450, 450..650]);
+
+    let mut beams = continuous(700, 0.0, 1.0);
+    for b in &mut beams[250..] {
+        b.bin_size_m = 0.2;
+    }
+    let rotations = assemble_rotations(&beams, &RotationConfig::default()).unwrap();
+    assert_eq!(ranges(&rotations), vec![0..200, 250..450, 450..650]);
+}
+
+#[test]
+fn repeated_angles_stay_in_the_rotation() {
+    // Each angle reported twice: 400 beams per turn.
+    let beams = beams_from_angles((0..800).map(|i| wrap_angle((i / 2) as f64 * STEP_RAD)));
+    let rotations = assemble_rotations(&beams, &RotationConfig::default()).unwrap();
+    assert_eq!(ranges(&rotations), vec![0..400, 400..800]);
+}
+
+#[test]
+fn bad_input_gives_errors_naming_the_beam_and_field() {
+    let config = RotationConfig::default();
+    assert!(matches!(
+        assemble_rotations(&[], &config),
+        Err(FrontendError::InsufficientData { .. })
+    ));
+
+    let mut beams = continuous(400, 0.0, 1.0);
+    beams[17].angle_rad = f64::NAN;
+    let err = assemble_rotations(&beams, &config).unwrap_err();
+    assert_eq!(
+        err,
+        FrontendError::input("beam 17", "angle_rad", "not finite")
+    );
+
+    let mut beams = continuous(400, 0.0, 1.0);
+    beams[5].stamp_s = f64::NAN;
+    let err = assemble_rotations(&beams, &config).unwrap_err();
+    assert!(
+        matches!(err, FrontendError::InvalidInput { ref record, ref field, .. }
+        if record == "beam 5" && field == "stamp_s")
+    );
+
+    let mut beams = continuous(400, 0.0, 1.0);
+    beams[30].stamp_s = beams[28].stamp_s;
+    let err = assemble_rotations(&beams, &config).unwrap_err();
+    assert!(
+        matches!(err, FrontendError::InvalidInput { ref record, ref field, .. }
+        if record == "beam 30" && field == "stamp_s")
+    );
+
+    let mut beams = continuous(400, 0.0, 1.0);
+    beams[3].bin_size_m = 0.0;
+    let err = assemble_rotations(&beams, &config).unwrap_err();
+    assert!(matches!(err, FrontendError::InvalidInput { ref field, .. } if field == "bin_size_m"));
+
+    let beams = continuous(150, 0.0, 1.0);
+    assert!(matches!(
+        assemble_rotations(&beams, &config),
+        Err(FrontendError::InsufficientData { .. })
+    ));
+}
+
+#[test]
+fn config_validation_rejects_out_of_range_values() {
+    assert!(RotationConfig::default().validate().is_ok());
+    let bad = [
+        RotationConfig {
+            max_gap_beam_periods: 1.0,
+            ..RotationConfig::default()
+        },
+        RotationConfig {
+            beam_period_s: Some(-0.1),
+            ..RotationConfig::default()
+        },
+        RotationConfig {
+            min_partial_coverage_rad: 7.0,
+            ..RotationConfig::default()
+        },
+    ];
+    for config in bad {
+        assert!(matches!(
+            config.validate(),
+            Err(FrontendError::InvalidConfig { .. })
+        ));
+    }
+}
+
+#[test]
+fn an_explicit_beam_period_sets_the_gap_threshold() {
+    let mut beams = continuous(400, 0.0, 1.0);
+    for b in &mut beams[100..] {
+        b.stamp_s += 0.5;
+    }
+    let config = RotationConfig {
+        beam_period_s: Some(0.5),
+        ..RotationConfig::default()
+    };
+    // 0.568 s < 3 x 0.5 s: no gap.
+    assert_eq!(
+        ranges(&assemble_rotations(&beams, &config).unwrap()),
+        vec![0..200, 200..400]
+    );
+    // With the derived 0.068 s period it is a gap.
+    assert_eq!(
+        ranges(&assemble_rotations(&beams, &RotationConfig::default()).unwrap()),
+        vec![100..300]
+    );
+}
+
+#[test]
+fn config_reads_from_json_with_defaults_and_rejects_unknown_keys() {
+    let parsed: RotationConfig =
+        serde_json::from_str(r#"{"keep_partial": true, "beam_period_s": 0.07}"#).unwrap();
+    assert!(parsed.keep_partial);
+    assert_eq!(parsed.beam_period_s, Some(0.07));
+    assert_eq!(parsed.max_gap_beam_periods, 3.0);
+    let err = serde_json::from_str::<RotationConfig>(r#"{"max_gap": 2}"#).unwrap_err();
+    assert!(err.to_string().contains("max_gap"));
+}

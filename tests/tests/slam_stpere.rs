@@ -1,0 +1,44 @@
+//! The SLAM pipeline on the St Pere replay: the real DVL and MTi navigation
+//! of the Ictineu AUV with simulated beams at the real beam times, against
+//! the DGPS track.
+
+use echofield::slam::{NoProgress, SlamConfig, run_mission};
+use echofield_datasets::sim::{Scenario, simulate_mission};
+
+#[test]
+fn st_pere_replay_is_within_a_metre_of_dgps() {
+    let mission = simulate_mission(&Scenario::named("stpere").unwrap(), 1).unwrap();
+    let output = run_mission(&mission, &SlamConfig::default(), &NoProgress).unwrap();
+    let report = &output.report;
+    // The beams of the first ~183 s precede the navigation: those
+    // rotations are skipped and reported, the rest are nodes.
+    assert!(report.rotations >= 225, "{} rotations", report.rotations);
+    let skipped = &report.skipped_rotations;
+    assert!((10..=16).contains(&skipped.len()), "{skipped:?}");
+    // The navigation starts once both a valid DVL sample and a heading
+    // exist; a rotation is skipped when it ends after that.
+    let first_dvl = mission.dvl.iter().find(|d| d.valid).unwrap().stamp_s;
+    let navigation_start_s = first_dvl.max(mission.attitude[0].stamp_s);
+    assert!(
+        skipped.iter().all(|s| s.start_s < navigation_start_s),
+        "{skipped:?}"
+    );
+    assert_eq!(report.nodes + skipped.len(), report.rotations);
+    assert!(report.warnings.iter().any(|w| w.contains("skipped")));
+
+    let ate = report.ate.as_ref().unwrap();
+    let dead_reckoning = report.ate_dead_reckoning.as_ref().unwrap();
+    assert_eq!(ate.pairs, report.nodes);
+    assert!(ate.rmse_m <= 1.0, "ATE {:.3} m against DGPS", ate.rmse_m);
+    assert!(
+        ate.rmse_m < 0.5 * dead_reckoning.rmse_m,
+        "{:.3} vs {:.3}",
+        ate.rmse_m,
+        dead_reckoning.rmse_m
+    );
+    assert!(
+        report.loops_accepted >= 50,
+        "{} loops",
+        report.loops_accepted
+    );
+}

@@ -1,0 +1,125 @@
+//! `echofield bench-dead-reckoning`: how much dead reckoning distorts the
+//! rotations and how far its trajectory drifts, against ground truth.
+
+use anyhow::{Context, Result};
+use echofield::matching::navigation_eval::{
+    distortion, ground_truth_navigation, trajectory_errors, wall_fractions,
+};
+use echofield::matching::{MatchingConfig, MissionRotations};
+use echofield_datasets::sim::{Scenario, simulate_mission};
+use echofield_datasets::stpere::read_stpere_dir;
+use echofield_frontend::dead_reckoning::{self, Navigation};
+use echofield_frontend::sensors::Mission;
+use std::path::PathBuf;
+
+const EXAMPLES: &str = "\
+Examples:
+  # The simulated marina and tank (seed 1), and the St Pere replay
+  echofield bench-dead-reckoning --scenario marina --seed 1
+  echofield bench-dead-reckoning --scenario stpere
+
+  # The real St Pere marina logs against DGPS (trajectory only)
+  echofield bench-dead-reckoning --stpere datasets/stpere-marina
+
+  # Other noise parameters: a TOML file with a [dead_reckoning] section
+  echofield bench-dead-reckoning --scenario marina --config dr.toml
+
+For simulated missions (exact ground truth) it prints the distortion of the
+rotations: the distance between the dead-reckoning and the exact motion
+compensation of the point 5 m along every beam, and the error of the motion
+over each rotation; for built-in scenarios the fraction of scan points
+within 0.1 / 0.3 / 1 m of the environment's walls (dead reckoning, and
+exact compensation for reference); and for every mission the trajectory
+error at the ground-truth stamps (ATE RMSE after SE(2) alignment; mean and
+max after moving the start onto the ground truth).";
+
+#[derive(Debug, clap::Args)]
+#[command(after_help = EXAMPLES)]
+pub struct Args {
+    /// Built-in scenario to simulate.
+    #[arg(long, conflicts_with = "stpere",
+          value_parser = clap::builder::PossibleValuesParser::new(Scenario::NAMES))]
+    pub scenario: Option<String>,
+    /// Seed of the simulation.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// A folder of real St Pere marina logs (DGPS as ground truth).
+    #[arg(long)]
+    pub stpere: Option<PathBuf>,
+    /// Configuration (TOML, as for `echofield match`; its
+    /// [dead_reckoning] and [rotation] sections are used).
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+}
+
+pub fn run(args: Args) -> Result<()> {
+    let config = match &args.config {
+        Some(path) => MatchingConfig::from_toml_file(path)?,
+        None => MatchingConfig::default(),
+    };
+    let (mission, scenario) = match (&args.scenario, &args.stpere) {
+        (Some(name), None) => {
+            let scenario = Scenario::named(name)?;
+            let mission = simulate_mission(&scenario, args.seed)
+                .with_context(|| format!("simulating the {name} scenario"))?;
+            (mission, Some(scenario))
+        }
+        (None, Some(dir)) => {
+            let logs = read_stpere_dir(dir)
+                .with_context(|| format!("reading the St Pere logs in {}", dir.display()))?;
+            (logs.mission, None)
+        }
+        _ => anyhow::bail!("give either --scenario or --stpere"),
+    };
+    let Some(scenario) = scenario else {
+        // Real logs: navigation only (the St Pere folder may hold no beams).
+        let nav =
+            dead_reckoning::run(&mission, &config.dead_reckoning).context("dead reckoning")?;
+        return print_trajectory(&mission, &nav);
+    };
+    let name = mission.name.clone();
+    let rotations = MissionRotations::new(mission, &config)?;
+    let (mission, nav) = (&rotations.mission, &rotations.navigation);
+    println!("{name}: {} rotations", rotations.rotations.len());
+    print_trajectory(mission, nav)?;
+    let truth = ground_truth_navigation(mission)?;
+    let d = distortion(mission, &rotations.rotations, nav, &truth)?;
+    println!(
+        "distortion over {} rotations: point at 5 m median {:.3} m, p90 {:.3} m, max {:.3} m; motion over a rotation median {:.3} m / {:.2}°, p90 {:.3} m / {:.2}°, max {:.3} m / {:.2}°",
+        d.rotations,
+        d.point_5m_m.median,
+        d.point_5m_m.p90,
+        d.point_5m_m.max,
+        d.rotation_motion_m.median,
+        d.rotation_motion_deg.median,
+        d.rotation_motion_m.p90,
+        d.rotation_motion_deg.p90,
+        d.rotation_motion_m.max,
+        d.rotation_motion_deg.max
+    );
+    for (label, navigation) in [("dead reckoning", nav), ("exact", &truth)] {
+        let w = wall_fractions(
+            mission,
+            &rotations.rotations,
+            navigation,
+            scenario.environment(),
+        )?;
+        println!(
+            "scan points near walls ({label}): {:.1}% within 0.1 m, {:.1}% within 0.3 m, {:.1}% within 1 m ({} points)",
+            100.0 * w.within_0_1_m,
+            100.0 * w.within_0_3_m,
+            100.0 * w.within_1_m,
+            w.points
+        );
+    }
+    Ok(())
+}
+
+fn print_trajectory(mission: &Mission, nav: &Navigation) -> Result<()> {
+    let t = trajectory_errors(mission, nav)?;
+    println!(
+        "trajectory at {} ground-truth stamps: ATE RMSE (SE(2)-aligned) {:.2} m; from the start: mean {:.2} m, max {:.2} m",
+        t.compared, t.ate_rmse_se2_m, t.origin_mean_m, t.origin_max_m
+    );
+    Ok(())
+}

@@ -1,0 +1,60 @@
+//! `echofield demo`: simulate the built-in marina mission and run the whole
+//! pipeline on it.
+
+use super::run::BarProgress;
+use anyhow::{Context, Result};
+use echofield::slam::SlamConfig;
+use echofield::slam::outputs::demo::run_demo;
+use echofield_datasets::sim::Scenario;
+use std::path::PathBuf;
+
+#[derive(Debug, clap::Args)]
+#[command(after_help = "\
+Examples:
+  # The marina demo: simulate ~40 min of mission, run SLAM, write everything
+  echofield demo --output out/demo
+
+  # Another seed, and a faster small tank mission
+  echofield demo --output out/demo7 --seed 7
+  echofield demo --output out/tank --scenario tank
+
+  # The St Pere replay (real navigation, simulated beams; about 231 rotations)
+  echofield demo --output out/stpere --scenario stpere
+
+The folder gets the simulated input (simulated_mission.mcap) and every output
+of `echofield run`: trajectory.png, loops.png, mosaic.png, mission.mcap (open
+it in Foxglove), report.json, loops.csv, TUM/CSV/g2o trajectories and
+config.toml.")]
+pub struct Args {
+    /// Output folder (created if needed).
+    #[arg(long, short)]
+    pub output: PathBuf,
+    /// Seed of the simulation.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Simulated scenario.
+    #[arg(long, default_value = "marina",
+          value_parser = clap::builder::PossibleValuesParser::new(["marina", "tank", "canyon", "stpere"]))]
+    pub scenario: String,
+    /// Pipeline configuration (TOML), as for `echofield run`.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+}
+
+pub fn run(args: Args) -> Result<()> {
+    let config = match &args.config {
+        Some(path) => SlamConfig::from_toml_file(path)?,
+        None => SlamConfig::default(),
+    };
+    let scenario = Scenario::named(&args.scenario)
+        .with_context(|| format!("cannot set up scenario `{}`", args.scenario))?;
+    let summary = run_demo(
+        &args.output,
+        &scenario,
+        args.seed,
+        &config,
+        &BarProgress::new(),
+    )?;
+    println!("{}", summary.text());
+    Ok(())
+}

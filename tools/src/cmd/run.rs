@@ -1,0 +1,130 @@
+//! `echofield run`: the SLAM pipeline over a whole mission, outputs into a
+//! folder. The pipeline itself is `echofield::slam::run_mission`; this
+//! command reads the mission and the config, drives a progress bar and
+//! writes the outputs.
+
+use anyhow::{Context, Result};
+use echofield::slam::outputs::write_outputs;
+use echofield::slam::{ProgressSink, SlamConfig, load_mission, run_mission};
+use indicatif::{ProgressBar, ProgressStyle};
+use std::io::IsTerminal;
+use std::path::PathBuf;
+use std::time::Instant;
+
+const EXAMPLES: &str = "\
+Examples:
+  # A mission recorded or simulated into MCAP, default configuration
+  echofield run marina.mcap --output out/marina
+
+  # With a configuration file (TOML; every key optional, unknown keys are errors)
+  echofield run marina.mcap --config tools/configs/marina.toml --output out/marina
+
+  # A St Pere log folder that holds the raw beams (_IS.log)
+  echofield run path/to/stpere-logs --output out/stpere
+
+  # Make a mission to try it on
+  echofield simulate --scenario marina --seed 1 --output marina.mcap
+
+The config sections are [dead_reckoning], [rotation], [segmentation],
+[image], [matcher], [sequential], [loops], [backend] and [evaluation]; see
+tools/configs/default.toml for every key with its default and unit. The
+effective config is written to OUTPUT/config.toml, the measured numbers to
+OUTPUT/report.json (ATE, RPE and loop precision/recall when the mission has
+ground truth).";
+
+#[derive(Debug, clap::Args)]
+#[command(after_help = EXAMPLES)]
+pub struct Args {
+    /// The mission: an MCAP file, or a St Pere log folder.
+    pub mission: PathBuf,
+    /// Pipeline configuration (TOML); defaults for missing keys.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Output folder (created if needed).
+    #[arg(long, short)]
+    pub output: PathBuf,
+}
+
+pub fn run(args: Args) -> Result<()> {
+    let config = match &args.config {
+        Some(path) => SlamConfig::from_toml_file(path)?,
+        None => SlamConfig::default(),
+    };
+    let start = Instant::now();
+    let mission = load_mission(&args.mission)?;
+    let reading_s = start.elapsed().as_secs_f64();
+    let progress = BarProgress::new();
+    let mut output = run_mission(&mission, &config, &progress)
+        .with_context(|| format!("SLAM on {} failed", args.mission.display()))?;
+    output.report.timings.reading_s = Some(reading_s);
+    write_outputs(&args.output, &output, &mission)
+        .with_context(|| format!("cannot write the outputs into {}", args.output.display()))?;
+    let report = &output.report;
+    println!(
+        "{}: {} nodes, {} of {} loop candidates accepted, {:.2} s; outputs in {}",
+        report.mission,
+        report.nodes,
+        report.loops_accepted,
+        report.loop_candidates,
+        start.elapsed().as_secs_f64(),
+        args.output.display()
+    );
+    if let (Some(ate), Some(dr)) = (report.ate_rmse_m, report.ate_rmse_dead_reckoning_m) {
+        println!("ATE RMSE {ate:.3} m (dead reckoning {dr:.3} m)");
+    }
+    for warning in &report.warnings {
+        tracing::warn!("{warning}");
+    }
+    Ok(())
+}
+
+/// A progress bar over the nodes on stderr; hidden when stderr is not a
+/// terminal.
+pub struct BarProgress {
+    bar: ProgressBar,
+}
+
+impl BarProgress {
+    pub fn new() -> Self {
+        let bar = if std::io::stderr().is_terminal() {
+            ProgressBar::new(0)
+        } else {
+            ProgressBar::hidden()
+        };
+        bar.set_style(
+            ProgressStyle::with_template("{spinner} {msg:32} [{bar:40}] {pos}/{len} rotations")
+                .expect("a valid template")
+                .progress_chars("=> "),
+        );
+        Self { bar }
+    }
+}
+
+impl Default for BarProgress {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl ProgressSink for BarProgress {
+    fn stage(&self, name: &str) {
+        self.bar.set_message(name.to_string());
+        self.bar.tick();
+    }
+
+    fn start_nodes(&self, nodes: usize) {
+        self.bar.set_length(nodes as u64);
+        self.bar.set_position(0);
+        self.bar.set_message("loop closing");
+    }
+
+    fn node_done(&self, done: usize, loops: usize) {
+        self.bar.set_position(done as u64);
+        self.bar
+            .set_message(format!("loop closing ({loops} loops)"));
+    }
+
+    fn finish(&self) {
+        self.bar.finish_and_clear();
+    }
+}

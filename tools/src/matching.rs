@@ -1,0 +1,335 @@
+//! Matching the rotations of a mission: the steps `echofield match`,
+//! `echofield bench-matcher` and the matcher's end-to-end tests share.
+//!
+//! A mission is read ([`load_mission`]), navigated (dead reckoning, or a
+//! vehicle at rest when the log has no DVL or no heading: the real static
+//! sonar recordings), cut into rotations, and for any rotation `k` the scan
+//! `S_k` and the acoustic image `I_k` are built in the frame of its central
+//! pose ([`MissionRotations`]). The prior of a match of `S_K` against `I_J`
+//! is the dead-reckoning motion between the two reference times, its search
+//! window `n_sigma` standard deviations of that motion ([`WindowConfig`]).
+
+pub mod evaluation;
+pub mod navigation_eval;
+pub mod plots;
+
+use anyhow::{Context, Result, bail};
+use echofield_datasets::{mcap, miniking, ping360, stpere};
+use echofield_frontend::dead_reckoning::{self, DeadReckoningConfig, Navigation};
+use echofield_frontend::image::{AcousticImage, ImageConfig};
+use echofield_frontend::matcher::{MatcherConfig, SearchWindow};
+use echofield_frontend::motion;
+use echofield_frontend::rotation::{Rotation, RotationConfig, assemble_rotations};
+use echofield_frontend::scan::{Scan, build_scan};
+use echofield_frontend::segmentation::SegmentationConfig;
+use echofield_frontend::sensors::{GroundTruthPose, Mission};
+use echofield_graph::{Se2, wrap_angle};
+use nalgebra::Matrix3;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// How the search window follows from the prior's covariance.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct WindowConfig {
+    /// Half-width of the window in standard deviations of the prior.
+    pub n_sigma: f64,
+    /// Smallest half-widths (x m, y m, θ rad).
+    pub min: SearchWindow,
+    /// Largest half-widths; also the window of a prior given by hand.
+    pub max: SearchWindow,
+}
+
+impl Default for WindowConfig {
+    fn default() -> Self {
+        Self {
+            n_sigma: 3.0,
+            min: SearchWindow::new(0.5, 0.5, 3.0_f64.to_radians()),
+            max: SearchWindow::new(5.5, 5.5, 22.0_f64.to_radians()),
+        }
+    }
+}
+
+impl WindowConfig {
+    pub fn window(&self, prior_covariance: &Matrix3<f64>) -> SearchWindow {
+        SearchWindow::from_covariance(prior_covariance, self.n_sigma, &self.min, &self.max)
+    }
+}
+
+/// Every stage's configuration for matching rotations (TOML sections).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct MatchingConfig {
+    pub dead_reckoning: DeadReckoningConfig,
+    pub rotation: RotationConfig,
+    pub segmentation: SegmentationConfig,
+    pub image: ImageConfig,
+    pub matcher: MatcherConfig,
+    pub window: WindowConfig,
+}
+
+impl MatchingConfig {
+    /// Reads a TOML file; unknown keys are errors naming the key.
+    pub fn from_toml_file(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("cannot read config {}", path.display()))?;
+        let config: Self =
+            toml::from_str(&text).with_context(|| format!("in config {}", path.display()))?;
+        config
+            .validate()
+            .with_context(|| format!("in config {}", path.display()))?;
+        Ok(config)
+    }
+
+    pub fn validate(&self) -> Result<()> {
+        self.dead_reckoning.validate().context("[dead_reckoning]")?;
+        self.rotation.validate().context("[rotation]")?;
+        self.segmentation.validate().context("[segmentation]")?;
+        self.image.validate().context("[image]")?;
+        self.matcher.validate().context("[matcher]")?;
+        if !(self.window.n_sigma.is_finite() && self.window.n_sigma > 0.0) {
+            bail!(
+                "[window] n_sigma must be positive, got {}",
+                self.window.n_sigma
+            );
+        }
+        self.window.min.validate().context("[window] min")?;
+        self.window.max.validate().context("[window] max")?;
+        Ok(())
+    }
+}
+
+/// Reads a mission: a St Pere log folder, a Ping360 `.bin` log, a MiniKing
+/// `.bag`, or else an echofield MCAP file.
+pub fn load_mission(path: &Path) -> Result<Mission> {
+    let extension = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    let mission = if path.is_dir() {
+        stpere::read_stpere_dir(path)
+            .with_context(|| format!("reading the St Pere logs in {}", path.display()))?
+            .mission
+    } else if extension == "bin" {
+        ping360::read_ping360(path)
+            .with_context(|| format!("reading the Ping360 log {}", path.display()))?
+            .to_mission()
+    } else if extension == "bag" {
+        miniking::read_miniking_bag(path)
+            .with_context(|| format!("reading the MiniKing bag {}", path.display()))?
+            .to_mission()
+    } else {
+        mcap::read_mission(path)
+            .with_context(|| format!("reading the MCAP mission {}", path.display()))?
+    };
+    if mission.beams.is_empty() {
+        bail!("{} holds no sonar beams", path.display());
+    }
+    Ok(mission)
+}
+
+/// A mission with its navigation and rotations.
+pub struct MissionRotations {
+    pub mission: Mission,
+    pub navigation: Navigation,
+    /// True when the mission has no DVL or no heading and the vehicle is
+    /// taken to be at rest (the real static sonar recordings).
+    pub stationary: bool,
+    pub rotations: Vec<Rotation>,
+}
+
+impl MissionRotations {
+    pub fn new(mission: Mission, config: &MatchingConfig) -> Result<Self> {
+        let stationary = mission.dvl.iter().all(|d| !d.valid) || mission.attitude.is_empty();
+        let navigation = if stationary {
+            tracing::info!(
+                "{}: no DVL or no heading; the vehicle is taken to be at rest",
+                mission.name
+            );
+            let first = mission.beams[0].stamp_s;
+            let last = mission.beams[mission.beams.len() - 1].stamp_s;
+            Navigation::stationary(first, last)
+        } else {
+            dead_reckoning::run(&mission, &config.dead_reckoning).context("dead reckoning")?
+        };
+        let rotations =
+            assemble_rotations(&mission.beams, &config.rotation).context("rotation assembly")?;
+        Ok(Self {
+            mission,
+            navigation,
+            stationary,
+            rotations,
+        })
+    }
+
+    /// Replaces the navigation by the mission's ground truth, so that motion
+    /// compensation is exact (to evaluate matching apart from the
+    /// dead-reckoning errors within a rotation).
+    pub fn use_ground_truth_navigation(&mut self) -> Result<()> {
+        let gt = &self.mission.ground_truth;
+        if gt.len() < 2 {
+            bail!("{} has no ground truth to navigate with", self.mission.name);
+        }
+        let stamps: Vec<f64> = gt.iter().map(|g| g.stamp_s).collect();
+        let poses: Vec<Se2> = gt.iter().map(|g| g.world_from_vehicle).collect();
+        self.navigation = Navigation::from_poses(&stamps, &poses, 1.0)
+            .context("navigation from the ground truth")?;
+        self.stationary = false;
+        Ok(())
+    }
+
+    /// Loads, navigates and cuts a mission file.
+    pub fn load(path: &Path, config: &MatchingConfig) -> Result<Self> {
+        Self::new(load_mission(path)?, config)
+    }
+
+    pub fn rotation(&self, k: usize) -> Result<&Rotation> {
+        self.rotations.get(k).with_context(|| {
+            format!(
+                "rotation {k} does not exist (the mission has {} rotations, 0-{})",
+                self.rotations.len(),
+                self.rotations.len().saturating_sub(1)
+            )
+        })
+    }
+
+    /// Beam frames of rotation `k` in its reference frame (eq. 3-4).
+    pub fn frames(&self, k: usize) -> Result<Vec<Se2>> {
+        let rotation = self.rotation(k)?;
+        let beams = &self.mission.beams[rotation.beams.clone()];
+        motion::reference_from_beams(
+            beams,
+            &self.navigation,
+            &self.mission.mounting,
+            rotation.reference_stamp_s,
+        )
+        .with_context(|| format!("motion compensation of rotation {k}"))
+    }
+
+    /// `S_k` and `I_k` of rotation `k`.
+    pub fn scan_and_image(
+        &self,
+        k: usize,
+        config: &MatchingConfig,
+    ) -> Result<(Scan, AcousticImage)> {
+        let rotation = self.rotation(k)?;
+        let beams = &self.mission.beams[rotation.beams.clone()];
+        let frames = self.frames(k)?;
+        let scan = build_scan(
+            beams,
+            &frames,
+            rotation.reference_stamp_s,
+            &config.segmentation,
+        )
+        .with_context(|| format!("scan of rotation {k}"))?;
+        let image = AcousticImage::build(beams, &frames, &config.image)
+            .with_context(|| format!("acoustic image of rotation {k}"))?;
+        Ok((scan, image))
+    }
+
+    /// `I_k` alone.
+    pub fn image(&self, k: usize, config: &MatchingConfig) -> Result<AcousticImage> {
+        let rotation = self.rotation(k)?;
+        let beams = &self.mission.beams[rotation.beams.clone()];
+        AcousticImage::build(beams, &self.frames(k)?, &config.image)
+            .with_context(|| format!("acoustic image of rotation {k}"))
+    }
+
+    /// `S_k` alone.
+    pub fn scan(&self, k: usize, config: &MatchingConfig) -> Result<Scan> {
+        let rotation = self.rotation(k)?;
+        let beams = &self.mission.beams[rotation.beams.clone()];
+        build_scan(
+            beams,
+            &self.frames(k)?,
+            rotation.reference_stamp_s,
+            &config.segmentation,
+        )
+        .with_context(|| format!("scan of rotation {k}"))
+    }
+
+    /// Dead-reckoning prior of `image_from_scan` for `S_scan` on `I_image`,
+    /// with its covariance.
+    pub fn prior(&self, scan: usize, image: usize) -> Result<(Se2, Matrix3<f64>)> {
+        let (from, to) = (self.rotation(image)?, self.rotation(scan)?);
+        self.navigation
+            .relative(from.reference_stamp_s, to.reference_stamp_s)
+            .with_context(|| format!("dead-reckoning motion from rotation {image} to {scan}"))
+    }
+
+    /// Ground-truth `image_from_scan`, when the mission has ground truth
+    /// covering both reference times.
+    pub fn ground_truth(&self, scan: usize, image: usize) -> Option<Se2> {
+        let gt = &self.mission.ground_truth;
+        let a = ground_truth_at(gt, self.rotations.get(image)?.reference_stamp_s)?;
+        let b = ground_truth_at(gt, self.rotations.get(scan)?.reference_stamp_s)?;
+        Some(a.between(&b))
+    }
+}
+
+/// Ground truth at `stamp_s`, interpolated linearly (angle on the shorter
+/// arc) between the samples around it; `None` outside their span.
+pub fn ground_truth_at(samples: &[GroundTruthPose], stamp_s: f64) -> Option<Se2> {
+    let after = samples.partition_point(|s| s.stamp_s < stamp_s);
+    if after == samples.len() {
+        return None;
+    }
+    let b = &samples[after];
+    if b.stamp_s == stamp_s || after == 0 {
+        return (b.stamp_s == stamp_s).then_some(b.world_from_vehicle);
+    }
+    let a = &samples[after - 1];
+    let f = (stamp_s - a.stamp_s) / (b.stamp_s - a.stamp_s);
+    let (pa, pb) = (a.world_from_vehicle, b.world_from_vehicle);
+    Some(Se2::new(
+        pa.x() + f * (pb.x() - pa.x()),
+        pa.y() + f * (pb.y() - pa.y()),
+        pa.theta() + f * wrap_angle(pb.theta() - pa.theta()),
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ground_truth_is_interpolated_on_the_short_arc() {
+        let samples = vec![
+            GroundTruthPose {
+                stamp_s: 10.0,
+                world_from_vehicle: Se2::new(0.0, 0.0, 3.0),
+            },
+            GroundTruthPose {
+                stamp_s: 12.0,
+                world_from_vehicle: Se2::new(2.0, -4.0, -3.0),
+            },
+        ];
+        let mid = ground_truth_at(&samples, 11.0).unwrap();
+        assert!((mid.x() - 1.0).abs() < 1e-12 && (mid.y() + 2.0).abs() < 1e-12);
+        // Halfway from 3 rad to -3 rad across ±π is π.
+        assert!((mid.theta().abs() - std::f64::consts::PI).abs() < 1e-9);
+        assert_eq!(
+            ground_truth_at(&samples, 12.0).unwrap(),
+            samples[1].world_from_vehicle
+        );
+        assert_eq!(
+            ground_truth_at(&samples, 10.0).unwrap(),
+            samples[0].world_from_vehicle
+        );
+        assert!(ground_truth_at(&samples, 9.0).is_none());
+        assert!(ground_truth_at(&samples, 12.5).is_none());
+        assert!(ground_truth_at(&[], 1.0).is_none());
+    }
+
+    #[test]
+    fn config_parses_partial_toml_and_rejects_unknown_keys() {
+        let cfg: MatchingConfig =
+            toml::from_str("[image]\ncell_size_m = 0.1\n[window]\nn_sigma = 2.0\n").unwrap();
+        assert_eq!(cfg.image.cell_size_m, Some(0.1));
+        assert_eq!(cfg.window.n_sigma, 2.0);
+        assert_eq!(cfg.matcher, MatcherConfig::default());
+        let err = toml::from_str::<MatchingConfig>("[image]\ncell_size = 0.1\n").unwrap_err();
+        assert!(err.to_string().contains("cell_size"), "{err}");
+        MatchingConfig::default().validate().unwrap();
+    }
+}

@@ -1,0 +1,605 @@
+//! Evaluation of the acoustic-image matcher against ground truth, side by
+//! side with point-to-point ICP on the same extracted ranges.
+//!
+//! **Pairs.** Rotation pairs `(K, J)` of a mission with ground truth are
+//! chosen on ground truth alone, so that every navigation and config
+//! evaluated sees the same pairs: the scans are built with the true motion
+//! within each rotation, and a pair overlaps when, with the true pose, at
+//! least `min_overlap` of the points of `S_K` lie within
+//! `overlap_radius_m` of a point of `S_J`. Consecutive pairs (`K = J + 1`)
+//! and non-consecutive ones (`K ≥ J + 2`) are counted apart; at most
+//! `max_pairs_per_kind` of each are drawn with the seed from all the
+//! overlapping ones (no other filter).
+//!
+//! **Constraint.** For each pair, the geometry of the overlap decides how
+//! well any scan match can be determined: with `n` the normal of `S_J` at
+//! each overlapping point (the minor principal axis of the `S_J` points
+//! within `normal_radius_m` of its nearest one), the smallest eigenvalue of
+//! the mean `n nᵀ` (0 when all overlapping points lie on walls of one
+//! direction, e.g. a corridor or a single quay, where the position along
+//! the walls is undetermined; 0.5 when the normals are spread evenly). The
+//! table gives the success rate over all pairs and over the pairs with a
+//! constraint of at least `min_constraint`.
+//!
+//! **Trials.** For every pair, `trials_per_pair` initial guesses are drawn
+//! around the true `image_from_scan`: a translation error of uniform length
+//! in `[0, max_initial_error_m]` and uniform direction, and a heading error
+//! uniform in `±max_initial_error_rad`. The matcher searches a window just
+//! wider than those errors; ICP starts from the same guess. Both use the
+//! scans and images built with the mission's navigation (dead reckoning or
+//! ground truth). A trial succeeds when the final error is below
+//! `success_m` and `success_rad`.
+
+use super::{MatchingConfig, MissionRotations};
+use anyhow::Result;
+use echofield_frontend::icp::{IcpConfig, icp, kdtree::KdTree};
+use echofield_frontend::matcher::{MatchOutcome, SearchWindow, match_scan, mean_score};
+use echofield_frontend::motion::reference_from_beams;
+use echofield_frontend::scan::{Scan, build_scan};
+use echofield_graph::{Se2, wrap_angle};
+use nalgebra::{Matrix2, Point2, Vector2, Vector3};
+use rand::seq::SliceRandom;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::time::Instant;
+
+/// Parameters of the evaluation.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct EvaluationConfig {
+    pub trials_per_pair: usize,
+    pub max_initial_error_m: f64,
+    pub max_initial_error_rad: f64,
+    pub success_m: f64,
+    pub success_rad: f64,
+    pub min_overlap: f64,
+    pub overlap_radius_m: f64,
+    /// Radius of the neighbourhood whose principal axes give the normals
+    /// of the constraint measure, metres.
+    pub normal_radius_m: f64,
+    /// Pairs with at least this constraint (0-0.5) are "constrained".
+    pub min_constraint: f64,
+    /// At most this many pairs of each kind (chosen with the seed).
+    pub max_pairs_per_kind: usize,
+    pub seed: u64,
+    pub icp: IcpConfig,
+}
+
+impl Default for EvaluationConfig {
+    fn default() -> Self {
+        Self {
+            trials_per_pair: 5,
+            max_initial_error_m: 5.0,
+            max_initial_error_rad: 20.0_f64.to_radians(),
+            success_m: 0.3,
+            success_rad: 2.0_f64.to_radians(),
+            min_overlap: 0.5,
+            overlap_radius_m: 0.5,
+            normal_radius_m: 1.0,
+            min_constraint: 0.1,
+            max_pairs_per_kind: 60,
+            seed: 1,
+            icp: IcpConfig::default(),
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PairKind {
+    Consecutive,
+    NonConsecutive,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Method {
+    AcousticImage,
+    Icp,
+}
+
+/// A pair of overlapping rotations.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Pair {
+    pub scan: usize,
+    pub image: usize,
+    pub kind: PairKind,
+    /// Fraction of `S_K` within `overlap_radius_m` of `S_J` (true pose).
+    pub overlap: f64,
+    /// The constraint measure of the module doc, 0-0.5.
+    pub constraint: f64,
+}
+
+/// One matcher or ICP run.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Trial {
+    pub scan: usize,
+    pub image: usize,
+    pub kind: PairKind,
+    /// The pair's constraint measure (see the module doc).
+    pub constraint: f64,
+    pub method: Method,
+    pub initial_error_m: f64,
+    pub initial_error_rad: f64,
+    /// `None` when the method gave no result (no match, ICP failure).
+    pub final_error_m: Option<f64>,
+    pub final_error_rad: Option<f64>,
+    pub success: bool,
+    pub time_s: f64,
+    /// `eᵀ Σ⁻¹ e` of the matcher's covariance (acoustic image only).
+    pub nees: Option<f64>,
+    /// The matcher's covariance claims success-level precision: standard
+    /// deviations below the success thresholds (acoustic image only).
+    pub confident: Option<bool>,
+    /// Mean score `s(x)/N` (eq. 5) of the matcher's estimate and of the
+    /// true pose (acoustic image only): a failure whose estimate scores
+    /// higher than the truth is an ambiguity of the score, one that scores
+    /// lower is a failure of the search.
+    pub mean_score: Option<f64>,
+    pub mean_score_at_truth: Option<f64>,
+    /// The match's second-peak ratio (acoustic image only).
+    pub second_peak_ratio: Option<f64>,
+}
+
+/// Everything measured.
+#[derive(Clone, Debug, Serialize)]
+pub struct Evaluation {
+    pub config: EvaluationConfig,
+    pub rotations: usize,
+    /// Rotations without a usable scan (too few ranges).
+    pub rotations_without_scan: usize,
+    pub pairs: BTreeMap<String, usize>,
+    /// Overlapping pairs of each kind before the draw.
+    pub overlapping_pairs: BTreeMap<String, usize>,
+    pub chosen_pairs: Vec<Pair>,
+    pub trials: Vec<Trial>,
+}
+
+/// Runs the evaluation on a mission with ground truth.
+pub fn evaluate(
+    mission: &MissionRotations,
+    config: &MatchingConfig,
+    eval: &EvaluationConfig,
+) -> Result<Evaluation> {
+    let n = mission.rotations.len();
+    let scans: Vec<Option<Scan>> = (0..n).map(|k| mission.scan(k, config).ok()).collect();
+    let truths: Vec<Option<Se2>> = (0..n)
+        .map(|k| {
+            super::ground_truth_at(
+                &mission.mission.ground_truth,
+                mission.rotations[k].reference_stamp_s,
+            )
+        })
+        .collect();
+    if truths.iter().all(Option::is_none) {
+        anyhow::bail!("the mission has no ground truth at the rotations' reference times");
+    }
+    let exact_scans = exact_scans(mission, config)?;
+    let mut rng = ChaCha8Rng::seed_from_u64(eval.seed);
+    let (pairs, overlapping_pairs) = choose_pairs(&exact_scans, &truths, eval, &mut rng);
+    let window = SearchWindow::new(
+        eval.max_initial_error_m + 0.5,
+        eval.max_initial_error_m + 0.5,
+        (eval.max_initial_error_rad + 2.0_f64.to_radians()).min(std::f64::consts::PI),
+    );
+    let mut trials = Vec::new();
+    // Pairs are grouped by image so each image is built once.
+    let mut by_image: BTreeMap<usize, Vec<Pair>> = BTreeMap::new();
+    for pair in &pairs {
+        by_image.entry(pair.image).or_default().push(*pair);
+    }
+    for (j, group) in by_image {
+        let image = mission.image(j, config)?;
+        let Some(target) = &scans[j] else {
+            continue; // no scan with this navigation: nothing to match
+        };
+        let target = &target.points;
+        for pair in group {
+            let (k, kind) = (pair.scan, pair.kind);
+            let Some(source) = &scans[k] else {
+                continue;
+            };
+            let source = &source.points;
+            let truth = truths[j]
+                .expect("pairs have truth")
+                .between(&truths[k].expect("pairs have truth"));
+            for _ in 0..eval.trials_per_pair {
+                let (prior, e_m, e_rad) = perturb(&truth, eval, &mut rng);
+                let base = |method, result: Option<Se2>, time_s, nees, confident| {
+                    let error = result.map(|r| truth.between(&r));
+                    let final_error_m = error.map(|e| e.translation().norm());
+                    let final_error_rad = error.map(|e| e.theta().abs());
+                    Trial {
+                        scan: k,
+                        image: j,
+                        kind,
+                        constraint: pair.constraint,
+                        method,
+                        initial_error_m: e_m,
+                        initial_error_rad: e_rad,
+                        final_error_m,
+                        final_error_rad,
+                        success: final_error_m.is_some_and(|m| m < eval.success_m)
+                            && final_error_rad.is_some_and(|r| r < eval.success_rad),
+                        time_s,
+                        nees,
+                        confident,
+                        mean_score: None,
+                        mean_score_at_truth: None,
+                        second_peak_ratio: None,
+                    }
+                };
+                let start = Instant::now();
+                let outcome = match_scan(source, &image, &prior, &window, &config.matcher)?;
+                let time_s = start.elapsed().as_secs_f64();
+                let (pose, nees, confident) = match &outcome {
+                    MatchOutcome::Match(m) => {
+                        let e = m.image_from_scan.to_vector() - truth.to_vector();
+                        let e = Vector3::new(e.x, e.y, wrap_angle(e.z));
+                        let nees = m
+                            .covariance
+                            .try_inverse()
+                            .map(|info| (e.transpose() * info * e)[0]);
+                        let xy = m.covariance.fixed_view::<2, 2>(0, 0).symmetric_eigen();
+                        let confident = xy.eigenvalues.max().sqrt() < eval.success_m
+                            && m.covariance[(2, 2)].sqrt() < eval.success_rad;
+                        (Some(m.image_from_scan), nees, Some(confident))
+                    }
+                    MatchOutcome::NoMatch { .. } => (None, None, Some(false)),
+                };
+                let mut trial = base(Method::AcousticImage, pose, time_s, nees, confident);
+                if let MatchOutcome::Match(m) = &outcome {
+                    trial.mean_score = Some(mean_score(source, &image, &m.image_from_scan));
+                    trial.mean_score_at_truth = Some(mean_score(source, &image, &truth));
+                    trial.second_peak_ratio = m.quality.second_peak_ratio;
+                }
+                trials.push(trial);
+                let start = Instant::now();
+                let result = icp(source, target, &prior, &eval.icp).ok();
+                let time_s = start.elapsed().as_secs_f64();
+                trials.push(base(
+                    Method::Icp,
+                    result.map(|r| r.target_from_source),
+                    time_s,
+                    None,
+                    None,
+                ));
+            }
+        }
+    }
+    let mut pair_counts = BTreeMap::new();
+    for pair in &pairs {
+        *pair_counts.entry(format!("{:?}", pair.kind)).or_insert(0) += 1;
+    }
+    Ok(Evaluation {
+        config: eval.clone(),
+        rotations: n,
+        rotations_without_scan: scans.iter().filter(|s| s.is_none()).count(),
+        pairs: pair_counts,
+        overlapping_pairs,
+        chosen_pairs: pairs,
+        trials,
+    })
+}
+
+/// Scans built with the ground truth as navigation (exact motion
+/// compensation), for choosing pairs independently of the navigation
+/// evaluated.
+fn exact_scans(mission: &MissionRotations, config: &MatchingConfig) -> Result<Vec<Option<Scan>>> {
+    let truth = super::navigation_eval::ground_truth_navigation(&mission.mission)?;
+    Ok(mission
+        .rotations
+        .iter()
+        .map(|rotation| {
+            let beams = &mission.mission.beams[rotation.beams.clone()];
+            let t_ref = rotation.reference_stamp_s;
+            let frames =
+                reference_from_beams(beams, &truth, &mission.mission.mounting, t_ref).ok()?;
+            build_scan(beams, &frames, t_ref, &config.segmentation).ok()
+        })
+        .collect())
+}
+
+/// Overlapping pairs (see the module doc), at most `max_pairs_per_kind` of
+/// each kind, and how many overlapping pairs of each kind there were.
+fn choose_pairs(
+    scans: &[Option<Scan>],
+    truths: &[Option<Se2>],
+    eval: &EvaluationConfig,
+    rng: &mut ChaCha8Rng,
+) -> (Vec<Pair>, BTreeMap<String, usize>) {
+    let trees: Vec<Option<KdTree>> = scans
+        .iter()
+        .map(|s| s.as_ref().map(|s| KdTree::new(&s.points)))
+        .collect();
+    let mut consecutive = Vec::new();
+    let mut others = Vec::new();
+    for k in 0..scans.len() {
+        for j in 0..k {
+            let (Some(scan_k), Some(scan_j), Some(tree_j), Some(tk), Some(tj)) =
+                (&scans[k], &scans[j], &trees[j], truths[k], truths[j])
+            else {
+                continue;
+            };
+            let truth = tj.between(&tk);
+            let overlap = overlap(&scan_k.points, tree_j, &truth, eval.overlap_radius_m);
+            if overlap < eval.min_overlap {
+                continue;
+            }
+            let kind = if k == j + 1 {
+                PairKind::Consecutive
+            } else {
+                PairKind::NonConsecutive
+            };
+            let pair = Pair {
+                scan: k,
+                image: j,
+                kind,
+                overlap,
+                constraint: constraint(&scan_k.points, &scan_j.points, tree_j, &truth, eval),
+            };
+            match kind {
+                PairKind::Consecutive => consecutive.push(pair),
+                PairKind::NonConsecutive => others.push(pair),
+            }
+        }
+    }
+    let counts = BTreeMap::from([
+        (format!("{:?}", PairKind::Consecutive), consecutive.len()),
+        (format!("{:?}", PairKind::NonConsecutive), others.len()),
+    ]);
+    let mut pairs = Vec::new();
+    for mut list in [consecutive, others] {
+        list.shuffle(rng);
+        list.truncate(eval.max_pairs_per_kind);
+        list.sort_by_key(|p| (p.scan, p.image));
+        pairs.extend(list);
+    }
+    (pairs, counts)
+}
+
+/// The constraint measure of the module doc for `points` (scan frame)
+/// placed by `image_from_scan` on `target` (whose tree is `tree`).
+fn constraint(
+    points: &[Point2<f64>],
+    target: &[Point2<f64>],
+    tree: &KdTree,
+    image_from_scan: &Se2,
+    eval: &EvaluationConfig,
+) -> f64 {
+    let mut sum = Matrix2::zeros();
+    let mut count = 0;
+    for p in points {
+        let q = image_from_scan.transform_point(p);
+        let Some((nearest, _)) = tree.nearest(&q, eval.overlap_radius_m) else {
+            continue;
+        };
+        let around = tree.within(&target[nearest], eval.normal_radius_m);
+        if around.len() < 3 {
+            continue;
+        }
+        let n = around.len() as f64;
+        let mean = around
+            .iter()
+            .map(|&i| target[i].coords)
+            .sum::<Vector2<f64>>()
+            / n;
+        let scatter = around
+            .iter()
+            .map(|&i| (target[i].coords - mean) * (target[i].coords - mean).transpose())
+            .sum::<Matrix2<f64>>();
+        let eigen = scatter.symmetric_eigen();
+        let minor = if eigen.eigenvalues.x <= eigen.eigenvalues.y {
+            0
+        } else {
+            1
+        };
+        let normal = eigen.eigenvectors.column(minor).into_owned();
+        sum += normal * normal.transpose();
+        count += 1;
+    }
+    if count == 0 {
+        return 0.0;
+    }
+    (sum / f64::from(count)).symmetric_eigenvalues().min()
+}
+
+/// Fraction of `points` (moved by `image_from_scan`) within `radius` of a
+/// point of the tree.
+fn overlap(points: &[Point2<f64>], tree: &KdTree, image_from_scan: &Se2, radius: f64) -> f64 {
+    if points.is_empty() {
+        return 0.0;
+    }
+    let hits = points
+        .iter()
+        .filter(|p| {
+            tree.nearest(&image_from_scan.transform_point(p), radius)
+                .is_some()
+        })
+        .count();
+    hits as f64 / points.len() as f64
+}
+
+/// The truth with a random error; returns the guess and the error sizes.
+fn perturb(truth: &Se2, eval: &EvaluationConfig, rng: &mut ChaCha8Rng) -> (Se2, f64, f64) {
+    let length = eval.max_initial_error_m * rng.random::<f64>();
+    let direction = std::f64::consts::TAU * rng.random::<f64>();
+    let angle = eval.max_initial_error_rad * (2.0 * rng.random::<f64>() - 1.0);
+    // The error is applied in the image frame: translation added to the
+    // true translation, angle to the true heading.
+    let guess = Se2::new(
+        truth.x() + length * direction.cos(),
+        truth.y() + length * direction.sin(),
+        truth.theta() + angle,
+    );
+    (guess, length, angle.abs())
+}
+
+impl Evaluation {
+    /// A Markdown table: per pair kind and method, trials, success rate,
+    /// and success by initial translation error; median final error of the
+    /// successes, mean time; the matcher's mean NEES.
+    pub fn table(&self) -> String {
+        let bins = [(0.0, 1.0), (1.0, 3.0), (3.0, f64::INFINITY)];
+        let max = self.config.max_initial_error_m;
+        let mut out = String::new();
+        let min_c = self.config.min_constraint;
+        let _ = writeln!(
+            out,
+            "| pairs | method | trials | success | constrained pairs (≥ {min_c}) | init <1 m | init 1-3 m | init 3-{max:.0} m | median error (succ.) | mean time | mean NEES (succ.) | confident: share, success |"
+        );
+        let _ = writeln!(out, "|---|---|---|---|---|---|---|---|---|---|---|---|");
+        for kind in [PairKind::Consecutive, PairKind::NonConsecutive] {
+            for method in [Method::AcousticImage, Method::Icp] {
+                let trials: Vec<&Trial> = self
+                    .trials
+                    .iter()
+                    .filter(|t| t.kind == kind && t.method == method)
+                    .collect();
+                if trials.is_empty() {
+                    continue;
+                }
+                let rate = |ts: &[&Trial]| {
+                    if ts.is_empty() {
+                        "-".to_string()
+                    } else {
+                        let ok = ts.iter().filter(|t| t.success).count();
+                        format!(
+                            "{:.1}% ({ok}/{})",
+                            100.0 * ok as f64 / ts.len() as f64,
+                            ts.len()
+                        )
+                    }
+                };
+                let by_bin: Vec<String> = bins
+                    .iter()
+                    .map(|&(lo, hi)| {
+                        let ts: Vec<&Trial> = trials
+                            .iter()
+                            .copied()
+                            .filter(|t| t.initial_error_m >= lo && t.initial_error_m < hi)
+                            .collect();
+                        rate(&ts)
+                    })
+                    .collect();
+                let mut errors_m: Vec<f64> = trials
+                    .iter()
+                    .filter(|t| t.success)
+                    .filter_map(|t| t.final_error_m)
+                    .collect();
+                let mut errors_deg: Vec<f64> = trials
+                    .iter()
+                    .filter(|t| t.success)
+                    .filter_map(|t| t.final_error_rad.map(f64::to_degrees))
+                    .collect();
+                let median_error = match (median(&mut errors_m), median(&mut errors_deg)) {
+                    (Some(m), Some(d)) => format!("{:.3} m, {d:.2}°", m),
+                    _ => "-".into(),
+                };
+                let mean_ms =
+                    1e3 * trials.iter().map(|t| t.time_s).sum::<f64>() / trials.len() as f64;
+                let nees: Vec<f64> = trials
+                    .iter()
+                    .filter(|t| t.success)
+                    .filter_map(|t| t.nees)
+                    .collect();
+                let mean_nees = if nees.is_empty() {
+                    "-".into()
+                } else {
+                    format!("{:.2}", nees.iter().sum::<f64>() / nees.len() as f64)
+                };
+                let confident: Vec<&Trial> = trials
+                    .iter()
+                    .copied()
+                    .filter(|t| t.confident == Some(true))
+                    .collect();
+                let confident = if method == Method::Icp {
+                    "-".to_string()
+                } else {
+                    format!(
+                        "{:.0}%, {}",
+                        100.0 * confident.len() as f64 / trials.len() as f64,
+                        rate(&confident)
+                    )
+                };
+                let constrained: Vec<&Trial> = trials
+                    .iter()
+                    .copied()
+                    .filter(|t| t.constraint >= min_c)
+                    .collect();
+                let _ = writeln!(
+                    out,
+                    "| {kind:?} | {method:?} | {} | {} | {} | {} | {} | {} | {median_error} | {mean_ms:.2} ms | {mean_nees} | {confident} |",
+                    trials.len(),
+                    rate(&trials),
+                    rate(&constrained),
+                    by_bin[0],
+                    by_bin[1],
+                    by_bin[2],
+                );
+            }
+        }
+        out
+    }
+
+    /// Success rate of one method over all pairs, 0-1.
+    pub fn success_rate(&self, method: Method) -> f64 {
+        self.success_rate_where(method, |_| true)
+    }
+
+    /// Success rate of one method over the trials that pass `filter`, 0-1
+    /// (0 when none does).
+    pub fn success_rate_where(&self, method: Method, filter: impl Fn(&Trial) -> bool) -> f64 {
+        let trials: Vec<&Trial> = self
+            .trials
+            .iter()
+            .filter(|t| t.method == method && filter(t))
+            .collect();
+        if trials.is_empty() {
+            return 0.0;
+        }
+        trials.iter().filter(|t| t.success).count() as f64 / trials.len() as f64
+    }
+}
+
+fn median(values: &mut [f64]) -> Option<f64> {
+    if values.is_empty() {
+        return None;
+    }
+    values.sort_by(f64::total_cmp);
+    Some(values[values.len() / 2])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn perturbations_stay_within_the_bounds() {
+        let eval = EvaluationConfig::default();
+        let mut rng = ChaCha8Rng::seed_from_u64(2);
+        let truth = Se2::new(3.0, -1.0, 2.9);
+        let mut largest = (0.0_f64, 0.0_f64);
+        for _ in 0..500 {
+            let (guess, m, rad) = perturb(&truth, &eval, &mut rng);
+            assert!(m <= 5.0 && rad <= 20.0_f64.to_radians());
+            assert!(((guess.translation() - truth.translation()).norm() - m).abs() < 1e-9);
+            assert!((wrap_angle(guess.theta() - truth.theta()).abs() - rad).abs() < 1e-9);
+            largest = (largest.0.max(m), largest.1.max(rad));
+        }
+        // The draws reach close to the bounds.
+        assert!(largest.0 > 4.8 && largest.1 > 19.0_f64.to_radians());
+    }
+
+    #[test]
+    fn overlap_counts_points_near_the_other_scan() {
+        let a: Vec<Point2<f64>> = (0..10).map(|i| Point2::new(f64::from(i), 0.0)).collect();
+        let tree = KdTree::new(&a);
+        assert_eq!(overlap(&a, &tree, &Se2::identity(), 0.1), 1.0);
+        // Shifted by 5 along the line: half the points still fall on it.
+        assert_eq!(overlap(&a, &tree, &Se2::new(5.0, 0.0, 0.0), 0.1), 0.5);
+        assert_eq!(overlap(&a, &tree, &Se2::new(0.0, 1.0, 0.0), 0.5), 0.0);
+    }
+}

@@ -1,0 +1,111 @@
+//! `loops_pr.png`: precision against recall of the loop-closure gate, one
+//! curve per swept quality metric, with the best-F1 threshold marked.
+
+use super::{FONT, plot_error, render_png};
+use anyhow::Result;
+use plotters::prelude::*;
+
+const COLOURS: [RGBColor; 4] = [
+    RGBColor(30, 90, 200),
+    RGBColor(220, 100, 20),
+    RGBColor(0, 150, 70),
+    RGBColor(150, 40, 160),
+];
+
+/// One curve: `(recall, precision)` points in threshold order.
+#[derive(Clone, Debug)]
+pub struct PrCurve {
+    pub label: String,
+    pub points: Vec<(f64, f64)>,
+    /// The best-F1 point `(recall, precision)` and its threshold, ringed
+    /// on the curve and named in the legend.
+    pub best: Option<(f64, f64, f64)>,
+}
+
+/// Draws the curves on the unit square as a PNG of `size_px`.
+pub fn precision_recall_png(
+    curves: &[PrCurve],
+    caption: &str,
+    size_px: (u32, u32),
+) -> Result<Vec<u8>> {
+    render_png(size_px.0, size_px.1, |root| {
+        let mut chart = ChartBuilder::on(root)
+            .caption(caption, (FONT, 24))
+            .margin(16)
+            .x_label_area_size(44)
+            .y_label_area_size(56)
+            .build_cartesian_2d(0.0..1.02, 0.0..1.02)
+            .map_err(plot_error)?;
+        chart
+            .configure_mesh()
+            .x_desc("recall")
+            .y_desc("precision")
+            .label_style((FONT, 14))
+            .axis_desc_style((FONT, 16))
+            .light_line_style(RGBColor(235, 235, 235))
+            .bold_line_style(RGBColor(210, 210, 210))
+            .draw()
+            .map_err(plot_error)?;
+        for (k, curve) in curves.iter().enumerate() {
+            let colour = COLOURS[k % COLOURS.len()];
+            let label = match curve.best {
+                Some((_, _, t)) => format!("{} (best F1 at t = {t:.4})", curve.label),
+                None => curve.label.clone(),
+            };
+            chart
+                .draw_series(LineSeries::new(
+                    curve.points.iter().copied(),
+                    colour.stroke_width(2),
+                ))
+                .map_err(plot_error)?
+                .label(label)
+                .legend(move |(x, y)| {
+                    PathElement::new([(x, y), (x + 20, y)], colour.stroke_width(3))
+                });
+            // Few points: show each threshold; many: the line says enough.
+            if curve.points.len() <= 40 {
+                chart
+                    .draw_series(
+                        curve
+                            .points
+                            .iter()
+                            .map(|&p| Circle::new(p, 3, colour.filled())),
+                    )
+                    .map_err(plot_error)?;
+            }
+            if let Some((r, p, _)) = curve.best {
+                chart
+                    .draw_series([Circle::new((r, p), 9, colour.stroke_width(2))])
+                    .map_err(plot_error)?;
+            }
+        }
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::LowerLeft)
+            .label_font((FONT, 15))
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .draw()
+            .map_err(plot_error)?;
+        Ok(())
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn curve_is_drawn_in_its_colour() {
+        let curve = PrCurve {
+            label: "mean intensity".into(),
+            points: vec![(0.25, 1.0), (0.5, 1.0), (0.75, 0.75), (1.0, 0.5)],
+            best: Some((0.75, 0.75, 0.42)),
+        };
+        let png = precision_recall_png(&[curve], "PR", (400, 300)).unwrap();
+        let rgb = image::load_from_memory(&png).unwrap().to_rgb8();
+        assert_eq!(rgb.dimensions(), (400, 300));
+        let c = COLOURS[0];
+        assert!(rgb.pixels().any(|p| p.0 == [c.0, c.1, c.2]));
+    }
+}

@@ -1,0 +1,140 @@
+//! The SLAM pipeline: frontend and backend joined over a whole mission.
+//!
+//! [`run_mission`] is what `echofield run`, `echofield demo` and the
+//! end-to-end tests call:
+//!
+//! 1. **Dead reckoning** (EKF over DVL and heading, [`dead_reckoning`]).
+//! 2. **Nodes** ([`nodes`]): the beams are cut into rotations; each rotation
+//!    the navigation covers becomes a node at its central pose, with `S_k`
+//!    and `I_k` motion-compensated into that pose (eq. 3-4), built once.
+//! 3. **Chain edges** ([`sequential`]): the dead-reckoning odometry edge
+//!    `k-1 -> k` with the EKF's relative covariance, and the sequential
+//!    match `S_k` vs `I_{k-1}` (eq. 5-6) as a `Sequential` edge when it
+//!    passes its checks.
+//! 4. **Loop closures** ([`loops`]), node by node: candidates gated by
+//!    predicted overlap and relative uncertainty, `S_k` vs `I_j` and the
+//!    symmetric `S_j` vs `I_k`, individual checks, and the maximum clique of
+//!    mutually consistent loops; an incremental solve ([`estimate`]) each
+//!    time the accepted set changes, so later candidates get corrected
+//!    priors and small windows.
+//! 5. **Final batch optimisation** (chordal initialisation from the trusted
+//!    edges, Levenberg-Marquardt, robust kernel on loop edges); loops the
+//!    kernel weights below [`result::ROBUST_WEIGHT_REJECTED`] are removed
+//!    and the graph solved again.
+//! 6. **Evaluation** ([`evaluation`]) when the mission has ground truth,
+//!    strictly after the estimation.
+//!
+//! Bad input: a mission without beams, without valid DVL samples or without
+//! heading is a [`SlamError::MissingSensor`]; rotations outside the
+//! navigation's span are skipped and reported; gaps in the DVL or between
+//! rotations are bridged by dead reckoning and reported
+//! ([`result::TimeGap`]); a mission without any loop closure gives the
+//! dead-reckoning-plus-sequential trajectory.
+//!
+//! Determinism: node building and sequential matching run in parallel
+//! (rayon) with results collected in order; everything else is sequential,
+//! so a mission and a config always give the same output.
+//!
+//! ```no_run
+//! use echofield::slam::{NoProgress, SlamConfig, load_mission, run_mission};
+//! let mission = load_mission(std::path::Path::new("marina.mcap"))?;
+//! let output = run_mission(&mission, &SlamConfig::default(), &NoProgress)?;
+//! println!("{} nodes, {} loops", output.nodes.len(), output.report.loops_accepted);
+//! # Ok::<(), anyhow::Error>(())
+//! ```
+
+pub mod config;
+pub mod error;
+pub mod estimate;
+pub mod evaluation;
+pub mod loops;
+pub mod nodes;
+pub mod outputs;
+pub mod result;
+pub mod sequential;
+pub mod symmetric;
+pub mod uncertainty;
+
+mod pipeline;
+
+pub use config::{BackendConfig, EvaluationConfig, SequentialConfig, SlamConfig, Window};
+pub use error::SlamError;
+pub use loops::LoopConfig;
+pub use pipeline::run_mission;
+pub use result::{
+    LoopRecord, NodeRecord, RejectReason, Report, SequentialRecord, SlamOutput, StageTimings,
+};
+
+use anyhow::{Context, Result, bail};
+use echofield_datasets::{mcap, stpere};
+use echofield_frontend::sensors::Mission;
+use std::path::Path;
+
+/// Progress of a run, for a progress bar. Every method has an empty
+/// default; [`NoProgress`] ignores everything.
+pub trait ProgressSink: Sync {
+    /// A stage starts (`"dead reckoning"`, `"building scans and images"`,
+    /// ...).
+    fn stage(&self, _name: &str) {}
+    /// The node-by-node loop starts over `nodes` nodes.
+    fn start_nodes(&self, _nodes: usize) {}
+    /// `done` nodes have been processed, `loops` loops are accepted.
+    fn node_done(&self, _done: usize, _loops: usize) {}
+    /// The run is over (successfully or not).
+    fn finish(&self) {}
+}
+
+/// A [`ProgressSink`] that reports nothing.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct NoProgress;
+
+impl ProgressSink for NoProgress {}
+
+/// Reads a mission: an echofield (or ROS 2) MCAP file, or a St Pere log
+/// folder (which must hold the raw beams, `_IS.log`).
+pub fn load_mission(path: &Path) -> Result<Mission> {
+    let mission = if path.is_dir() {
+        let logs = stpere::read_stpere_dir(path)
+            .with_context(|| format!("reading the St Pere logs in {}", path.display()))?;
+        if logs.mission.beams.is_empty() {
+            bail!(
+                "the St Pere logs in {} hold no sonar beams (the raw `_IS.log` is not in the folder); \
+                 `echofield simulate stpere` makes a replay with simulated beams",
+                path.display()
+            );
+        }
+        logs.mission
+    } else if path.is_file() {
+        mcap::read_mission(path)
+            .with_context(|| format!("reading the MCAP mission {}", path.display()))?
+    } else {
+        bail!(
+            "{} is neither an MCAP file nor a St Pere log folder",
+            path.display()
+        );
+    };
+    Ok(mission)
+}
+
+/// Checks that the mission has the three streams the pipeline needs.
+pub fn check_sensors(mission: &Mission) -> Result<(), SlamError> {
+    let missing = |what: &str| SlamError::MissingSensor {
+        mission: mission.name.clone(),
+        what: what.to_string(),
+    };
+    if mission.beams.is_empty() {
+        return Err(missing("no sonar beams: nothing to build scans from"));
+    }
+    if !mission.dvl.iter().any(|d| d.valid) {
+        return Err(missing(&format!(
+            "no valid DVL velocity ({} DVL samples, none valid): dead reckoning needs one",
+            mission.dvl.len()
+        )));
+    }
+    if mission.attitude.is_empty() {
+        return Err(missing(
+            "no heading: the mission has no attitude samples, dead reckoning needs them",
+        ));
+    }
+    Ok(())
+}

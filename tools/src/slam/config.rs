@@ -1,0 +1,410 @@
+//! The configuration of a SLAM run: one TOML section per stage.
+//!
+//! Every section is `#[serde(default, deny_unknown_fields)]`: missing keys
+//! take the documented defaults, an unknown key at any depth is an error
+//! that names its full path (`loops.min_separaton_nodes`). The frontend and
+//! backend sections are those crates' own config structs; the sections
+//! that belong to the pipeline itself (sequential matching, loop closures,
+//! incremental optimisation, evaluation) are defined here and in
+//! [`super::loops`].
+//!
+//! ```toml
+//! [image]
+//! cell_size_m = 0.2
+//! [loops]
+//! max_candidates_per_node = 4
+//! [backend.solver.robust.loop]
+//! kind = "cauchy"
+//! c = 2.796
+//! ```
+
+use super::SlamError;
+use super::loops::LoopConfig;
+use echofield_backend::{Initialisation, RobustConfig, RobustKernel, SolverConfig};
+use echofield_frontend::dead_reckoning::DeadReckoningConfig;
+use echofield_frontend::image::ImageConfig;
+use echofield_frontend::matcher::{MatcherConfig, SearchWindow};
+use echofield_frontend::rotation::RotationConfig;
+use echofield_frontend::segmentation::SegmentationConfig;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// Everything `echofield run` can be told.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SlamConfig {
+    /// The dead-reckoning EKF (noise, heading offset, extrapolation).
+    pub dead_reckoning: DeadReckoningConfig,
+    /// Cutting the beam stream into rotations.
+    pub rotation: RotationConfig,
+    /// Range extraction for the scans `S_k`.
+    pub segmentation: SegmentationConfig,
+    /// The acoustic images `I_k`.
+    pub image: ImageConfig,
+    /// The scan matcher (eq. 5-6), shared by sequential and loop matches.
+    pub matcher: MatcherConfig,
+    /// Sequential matches `S_k` vs `I_{k-1}`.
+    pub sequential: SequentialConfig,
+    /// Loop-closure candidates, checks and mutual consistency.
+    pub loops: LoopConfig,
+    /// The pose-graph optimisation.
+    pub backend: BackendConfig,
+    /// Evaluation against ground truth (only when the mission has it).
+    pub evaluation: EvaluationConfig,
+}
+
+impl Default for SlamConfig {
+    /// The frontend's and backend's own defaults, except for the matcher:
+    /// no L-BFGS refinement (`refine_iterations = 0`: the quadratic fit of
+    /// the score surface already gives the sub-cell peak, and the
+    /// refinement costs about 2 ms per match for no measurable gain in the
+    /// pipeline) and no second-peak search (`second_peak = false`: on the
+    /// simulated missions the ratio did not separate right from wrong
+    /// loop matches, and the second search doubles the cost).
+    fn default() -> Self {
+        Self {
+            dead_reckoning: DeadReckoningConfig::default(),
+            rotation: RotationConfig::default(),
+            segmentation: SegmentationConfig::default(),
+            image: ImageConfig::default(),
+            matcher: MatcherConfig {
+                refine_iterations: 0,
+                second_peak: false,
+                ..MatcherConfig::default()
+            },
+            sequential: SequentialConfig::default(),
+            loops: LoopConfig::default(),
+            backend: BackendConfig::default(),
+            evaluation: EvaluationConfig::default(),
+        }
+    }
+}
+
+impl SlamConfig {
+    /// Parses TOML; an unknown key is an error naming its path, an invalid
+    /// value an error naming its field.
+    pub fn from_toml_str(text: &str) -> Result<Self, SlamError> {
+        let deserializer = toml::Deserializer::parse(text)
+            .map_err(|e| SlamError::config("(document)", e.to_string()))?;
+        let config: Self = serde_path_to_error::deserialize(deserializer).map_err(|e| {
+            let path = e.path().to_string();
+            SlamError::config(path, e.into_inner().to_string().trim_end().to_string())
+        })?;
+        config.validate()?;
+        Ok(config)
+    }
+
+    /// Reads a TOML file (see [`SlamConfig::from_toml_str`]).
+    pub fn from_toml_file(path: &Path) -> anyhow::Result<Self> {
+        use anyhow::Context;
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("cannot read config {}", path.display()))?;
+        Self::from_toml_str(&text).with_context(|| format!("in config {}", path.display()))
+    }
+
+    /// The effective configuration as TOML (for `config.toml` beside the
+    /// outputs).
+    pub fn to_toml_string(&self) -> String {
+        toml::to_string_pretty(self).expect("the config serialises to TOML")
+    }
+
+    /// Checks every section; the error names the first bad field by its
+    /// TOML path. Never changes a value.
+    pub fn validate(&self) -> Result<(), SlamError> {
+        let section = |name: &str, r: Result<(), echofield_frontend::FrontendError>| {
+            r.map_err(|e| match e {
+                echofield_frontend::FrontendError::InvalidConfig { field, message } => {
+                    SlamError::config(format!("{name}.{field}"), message)
+                }
+                other => SlamError::config(name, other.to_string()),
+            })
+        };
+        section("dead_reckoning", self.dead_reckoning.validate())?;
+        section("rotation", self.rotation.validate())?;
+        section("segmentation", self.segmentation.validate())?;
+        section("image", self.image.validate())?;
+        section("matcher", self.matcher.validate())?;
+        self.sequential.validate()?;
+        self.loops.validate()?;
+        self.backend.validate()?;
+        self.evaluation.validate()?;
+        Ok(())
+    }
+}
+
+/// Checks that `value` is finite and within `[lo, hi]`.
+pub(crate) fn check_range(field: &str, value: f64, lo: f64, hi: f64) -> Result<(), SlamError> {
+    if value.is_finite() && value >= lo && value <= hi {
+        Ok(())
+    } else {
+        Err(SlamError::config(
+            field,
+            format!("must be finite and within [{lo}, {hi}], got {value}"),
+        ))
+    }
+}
+
+/// Three per-axis values `x_m`, `y_m`, `theta_rad`: the half-widths of a
+/// search window, or standard deviations. The config form of the matcher's
+/// [`SearchWindow`] (which accepts unknown keys; this one does not).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Window {
+    pub x_m: f64,
+    pub y_m: f64,
+    pub theta_rad: f64,
+}
+
+impl Window {
+    pub const fn new(x_m: f64, y_m: f64, theta_rad: f64) -> Self {
+        Self {
+            x_m,
+            y_m,
+            theta_rad,
+        }
+    }
+
+    /// As the matcher's window type.
+    pub fn search(&self) -> SearchWindow {
+        SearchWindow::new(self.x_m, self.y_m, self.theta_rad)
+    }
+}
+
+/// Checks a window's values (finite, >= 0, angle <= π).
+pub(crate) fn check_window(field: &str, window: &Window) -> Result<(), SlamError> {
+    window
+        .search()
+        .validate()
+        .map_err(|e| SlamError::config(field, e.to_string()))
+}
+
+/// Sequential matching: `S_k` against `I_{k-1}` with the dead-reckoning
+/// motion as prior.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SequentialConfig {
+    /// Match consecutive rotations at all (false: dead reckoning only
+    /// between consecutive nodes). Default true.
+    pub enabled: bool,
+    /// Search half-width in standard deviations of the dead-reckoning
+    /// motion's covariance. Default 3.
+    pub n_sigma: f64,
+    /// Smallest search half-widths `[x_m, y_m, theta_rad]`. Default
+    /// 0.5 m, 0.5 m, 3°.
+    pub min_window: Window,
+    /// Largest search half-widths. Default 3 m, 3 m, 15°.
+    pub max_window: Window,
+    /// A match whose mean image intensity under the points
+    /// (`MatchQuality::mean_intensity`, 0-1) is below this is not used.
+    /// Default 0.15.
+    pub min_mean_intensity: f64,
+    /// Largest squared Mahalanobis distance between the match and the
+    /// dead-reckoning motion, with both covariances (3 degrees of
+    /// freedom; 16.3 is the 99.9% quantile). Larger: the match is not
+    /// used. Default 16.3.
+    pub max_prior_chi2: f64,
+    /// Smallest standard deviations `[x_m, y_m, theta_rad]` of a sequential
+    /// edge: the match covariance is inflated to at least these (the score
+    /// surface's covariance does not include the errors of motion
+    /// compensation, which grow with the dead-reckoning error inside a
+    /// rotation). Default 0.1 m, 0.1 m, 0.75°.
+    pub min_sigma: Window,
+    /// Also match `S_{k-1}` against `I_k` (module `symmetric`): the edge
+    /// then carries the mean of both matches, and is not added when they
+    /// disagree beyond the tolerances below. Doubles the cost of
+    /// sequential matching. Default true.
+    pub symmetric: bool,
+    /// Window of the reverse match around the inverse of the forward one.
+    /// Default 0.5 m, 0.5 m, 3°.
+    pub reverse_window: Window,
+    /// Largest disagreement of the two matches, m. Default 0.75.
+    pub reverse_max_translation_m: f64,
+    /// ... and rad. Default 2°.
+    pub reverse_max_rotation_rad: f64,
+}
+
+impl Default for SequentialConfig {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            n_sigma: 3.0,
+            min_window: Window::new(0.5, 0.5, 3.0_f64.to_radians()),
+            max_window: Window::new(3.0, 3.0, 15.0_f64.to_radians()),
+            min_mean_intensity: 0.15,
+            max_prior_chi2: 16.3,
+            min_sigma: Window::new(0.1, 0.1, 0.75_f64.to_radians()),
+            symmetric: true,
+            reverse_window: Window::new(0.5, 0.5, 3.0_f64.to_radians()),
+            reverse_max_translation_m: 0.75,
+            reverse_max_rotation_rad: 2.0_f64.to_radians(),
+        }
+    }
+}
+
+impl SequentialConfig {
+    pub fn validate(&self) -> Result<(), SlamError> {
+        check_range("sequential.n_sigma", self.n_sigma, 0.1, 100.0)?;
+        check_window("sequential.min_window", &self.min_window)?;
+        check_window("sequential.max_window", &self.max_window)?;
+        check_range(
+            "sequential.min_mean_intensity",
+            self.min_mean_intensity,
+            0.0,
+            1.0,
+        )?;
+        check_range("sequential.max_prior_chi2", self.max_prior_chi2, 0.0, 1e12)?;
+        check_window("sequential.min_sigma", &self.min_sigma)?;
+        check_window("sequential.reverse_window", &self.reverse_window)?;
+        check_range(
+            "sequential.reverse_max_translation_m",
+            self.reverse_max_translation_m,
+            0.0,
+            100.0,
+        )?;
+        check_range(
+            "sequential.reverse_max_rotation_rad",
+            self.reverse_max_rotation_rad,
+            0.0,
+            std::f64::consts::PI,
+        )?;
+        Ok(())
+    }
+}
+
+/// The pose-graph optimisation.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct BackendConfig {
+    /// Re-optimise during the mission after loops are accepted (warm
+    /// started from the current estimate), so that later loop candidates
+    /// get corrected priors and small search windows. Default true.
+    pub incremental: bool,
+    /// Iteration limit of an incremental solve. Default 10.
+    pub incremental_max_iterations: usize,
+    /// Standard deviation of a heading prior on every node, rad: the
+    /// dead-reckoning heading, which a compass bounds in absolute terms,
+    /// while relative edges alone would let the heading random-walk along
+    /// the chain. It covers what the EKF does not model (a slowly
+    /// wandering compass error); a constant heading bias only rotates the
+    /// whole map. 0 adds no priors. Default 3°.
+    pub heading_prior_sigma_rad: f64,
+    /// The final batch solve (and, with `initialisation = "current"`
+    /// forced, the incremental ones). Default: Levenberg-Marquardt from the
+    /// chordal initialisation, Cauchy kernel (c = 2.796) on loop edges.
+    pub solver: SolverConfig,
+}
+
+impl Default for BackendConfig {
+    fn default() -> Self {
+        Self {
+            incremental: true,
+            incremental_max_iterations: 10,
+            heading_prior_sigma_rad: 3.0_f64.to_radians(),
+            solver: SolverConfig {
+                robust: RobustConfig::loops_only(RobustKernel::CAUCHY_DEFAULT),
+                ..SolverConfig::default()
+            },
+        }
+    }
+}
+
+impl BackendConfig {
+    pub fn validate(&self) -> Result<(), SlamError> {
+        if self.incremental_max_iterations == 0 {
+            return Err(SlamError::config(
+                "backend.incremental_max_iterations",
+                "must be at least 1",
+            ));
+        }
+        if self.heading_prior_sigma_rad != 0.0 {
+            check_range(
+                "backend.heading_prior_sigma_rad",
+                self.heading_prior_sigma_rad,
+                1e-6,
+                std::f64::consts::PI,
+            )?;
+        }
+        self.solver.validate().map_err(|e| match &e {
+            echofield_backend::ConfigError::OutOfRange { field, .. } => {
+                SlamError::config(format!("backend.solver.{field}"), e.to_string())
+            }
+            _ => SlamError::config("backend.solver", e.to_string()),
+        })
+    }
+
+    /// The solver configuration of the incremental solves.
+    pub fn incremental_solver(&self) -> SolverConfig {
+        SolverConfig {
+            initialisation: Initialisation::Current,
+            max_iterations: self.incremental_max_iterations,
+            ..self.solver.clone()
+        }
+    }
+}
+
+/// Evaluation against ground truth. Ground truth is read only here, after
+/// the estimation: nothing of it reaches the pipeline.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct EvaluationConfig {
+    /// A loop edge is a true positive when its relative pose is within this
+    /// distance of the ground-truth relative pose, metres. Default 0.5.
+    pub true_positive_translation_m: f64,
+    /// ... and within this angle, degrees. Default 3.
+    pub true_positive_rotation_deg: f64,
+    /// Scan overlap of a node pair: the fraction of the points of `S_k`,
+    /// placed in node `j`'s frame with the ground-truth relative pose, that
+    /// lie within this distance of a point of `S_j`, metres. Default 0.5.
+    pub overlap_distance_m: f64,
+    /// Node pairs with at least this ground-truth scan overlap (and at
+    /// least `loops.min_separation_nodes` apart) form the recall set.
+    /// Default 0.3.
+    pub recall_min_overlap: f64,
+    /// Distances of the relative pose error, metres. Default 10, 50, 100.
+    pub rpe_distances_m: Vec<f64>,
+}
+
+impl Default for EvaluationConfig {
+    fn default() -> Self {
+        Self {
+            true_positive_translation_m: 0.5,
+            true_positive_rotation_deg: 3.0,
+            overlap_distance_m: 0.5,
+            recall_min_overlap: 0.3,
+            rpe_distances_m: vec![10.0, 50.0, 100.0],
+        }
+    }
+}
+
+impl EvaluationConfig {
+    pub fn validate(&self) -> Result<(), SlamError> {
+        check_range(
+            "evaluation.true_positive_translation_m",
+            self.true_positive_translation_m,
+            0.0,
+            1e6,
+        )?;
+        check_range(
+            "evaluation.true_positive_rotation_deg",
+            self.true_positive_rotation_deg,
+            0.0,
+            180.0,
+        )?;
+        check_range(
+            "evaluation.overlap_distance_m",
+            self.overlap_distance_m,
+            1e-3,
+            100.0,
+        )?;
+        check_range(
+            "evaluation.recall_min_overlap",
+            self.recall_min_overlap,
+            0.0,
+            1.0,
+        )?;
+        for (i, d) in self.rpe_distances_m.iter().enumerate() {
+            check_range(&format!("evaluation.rpe_distances_m[{i}]"), *d, 1e-3, 1e7)?;
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,53 @@
+//! Why a SLAM run failed. Data that merely cannot be matched (a silent
+//! rotation, a loop candidate without overlap) is not an error: it is
+//! recorded in the output and the run goes on.
+
+use echofield_backend::SolveError;
+use echofield_frontend::FrontendError;
+use echofield_graph::GraphError;
+use thiserror::Error;
+
+/// A failed [`run_mission`](super::run_mission).
+#[derive(Debug, Error)]
+#[non_exhaustive]
+pub enum SlamError {
+    /// A configuration value is out of range; `field` is its TOML path
+    /// (`loops.min_separation_nodes`).
+    #[error("invalid config `{field}`: {message}")]
+    Config { field: String, message: String },
+    /// The mission lacks a sensor stream the pipeline needs.
+    #[error("mission `{mission}`: {what}")]
+    MissingSensor { mission: String, what: String },
+    /// A frontend stage failed on the mission's data (bad records, no
+    /// complete rotation).
+    #[error("{stage}: {source}")]
+    Frontend {
+        stage: String,
+        #[source]
+        source: FrontendError,
+    },
+    /// No rotation of the mission became a node (e.g. every beam lies
+    /// outside the span of the navigation).
+    #[error("mission `{mission}`: no rotation could become a node: {reason}")]
+    NoNodes { mission: String, reason: String },
+    #[error("pose graph: {0}")]
+    Graph(#[from] GraphError),
+    #[error("optimisation: {0}")]
+    Solve(#[from] SolveError),
+}
+
+impl SlamError {
+    pub fn config(field: impl Into<String>, message: impl Into<String>) -> Self {
+        SlamError::Config {
+            field: field.into(),
+            message: message.into(),
+        }
+    }
+
+    pub fn frontend(stage: impl Into<String>, source: FrontendError) -> Self {
+        SlamError::Frontend {
+            stage: stage.into(),
+            source,
+        }
+    }
+}

@@ -1,0 +1,216 @@
+//! The growing pose graph and its current estimate.
+//!
+//! Nodes are added as rotations arrive, with the dead-reckoning odometry
+//! edge and, when accepted, the sequential match edge to the previous node;
+//! accepted loop edges come and go as the set of mutually consistent loops
+//! changes. A new node's pose is the previous node's current pose composed
+//! with the sequential match (or the odometry when there is none), so the
+//! estimate stays corrected between solves.
+//!
+//! Incremental solves start from the current estimate
+//! (`Initialisation::Current`) with a small iteration limit, reusing one
+//! [`Solver`], which keeps its symbolic factorisation while the pattern is
+//! unchanged. The final batch solve starts from the configured
+//! initialisation (chordal by default, from the trusted edges only).
+
+use super::SlamError;
+use super::config::BackendConfig;
+use super::uncertainty::{LinkGraph, information};
+use echofield_backend::{SolveSummary, Solver};
+use echofield_graph::{Edge, EdgeKind, Node, NodeId, PoseGraph, Se2};
+use nalgebra::Matrix3;
+use std::collections::BTreeMap;
+
+/// The edges, current poses and link structure of the graph.
+pub struct Estimate {
+    stamps_s: Vec<f64>,
+    poses: Vec<Se2>,
+    /// Odometry and sequential edges, in insertion order.
+    chain: Vec<Edge>,
+    /// Accepted loop edges by loop id (the candidate's record index).
+    loops: BTreeMap<usize, Edge>,
+    links: LinkGraph,
+    solver: Solver,
+    pub incremental_solves: usize,
+    pub incremental_symbolic_reused: usize,
+    pub incremental_time_s: f64,
+}
+
+impl Estimate {
+    pub fn new(backend: &BackendConfig) -> Result<Self, SlamError> {
+        Ok(Self {
+            stamps_s: Vec::new(),
+            poses: Vec::new(),
+            chain: Vec::new(),
+            loops: BTreeMap::new(),
+            links: LinkGraph::new(),
+            solver: Solver::new(backend.incremental_solver())?,
+            incremental_solves: 0,
+            incremental_symbolic_reused: 0,
+            incremental_time_s: 0.0,
+        })
+    }
+
+    pub fn len(&self) -> usize {
+        self.poses.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.poses.is_empty()
+    }
+
+    /// The current estimate of every node, `world_from_node`.
+    pub fn poses(&self) -> &[Se2] {
+        &self.poses
+    }
+
+    pub fn links(&self) -> &LinkGraph {
+        &self.links
+    }
+
+    /// Adds a node at `pose`; returns its id.
+    pub fn add_node(&mut self, stamp_s: f64, pose: Se2) -> usize {
+        self.stamps_s.push(stamp_s);
+        self.poses.push(pose);
+        self.links.add_node();
+        self.poses.len() - 1
+    }
+
+    /// Adds an odometry or sequential edge `from -> to` measuring
+    /// `from_from_to` with covariance `cov` (positive definite).
+    pub fn add_chain_edge(
+        &mut self,
+        kind: EdgeKind,
+        from: usize,
+        to: usize,
+        from_from_to: Se2,
+        cov: &Matrix3<f64>,
+        metadata: Option<serde_json::Value>,
+    ) -> Result<(), SlamError> {
+        let edge = make_edge(kind, from, to, from_from_to, cov, metadata)?;
+        self.links.add(from, to, &from_from_to, cov);
+        self.chain.push(edge);
+        Ok(())
+    }
+
+    /// Adds a heading prior on node `k`: its dead-reckoning heading with
+    /// standard deviation `sigma_rad`, and no information on position
+    /// beyond a negligible `1e-12 / m²` (which keeps the information matrix
+    /// positive definite, as the graph requires).
+    pub fn add_heading_prior(
+        &mut self,
+        k: usize,
+        world_from_node: Se2,
+        sigma_rad: f64,
+    ) -> Result<(), SlamError> {
+        let info = Matrix3::from_diagonal(&nalgebra::Vector3::new(
+            PRIOR_POSITION_INFORMATION,
+            PRIOR_POSITION_INFORMATION,
+            1.0 / (sigma_rad * sigma_rad),
+        ));
+        let cov = info.try_inverse().expect("diagonal and positive");
+        let edge = make_edge(EdgeKind::Prior, k, k, world_from_node, &cov, None)?;
+        self.chain.push(edge);
+        Ok(())
+    }
+
+    /// Makes the accepted loops exactly `accepted` (id, from, to,
+    /// `from_from_to`, covariance, metadata); returns whether anything
+    /// changed.
+    pub fn set_loops(&mut self, accepted: Vec<(usize, Edge, Matrix3<f64>)>) -> bool {
+        let new_ids: Vec<usize> = accepted.iter().map(|(id, _, _)| *id).collect();
+        let old_ids: Vec<usize> = self.loops.keys().copied().collect();
+        if new_ids == old_ids {
+            return false;
+        }
+        for (_, edge) in std::mem::take(&mut self.loops) {
+            self.links.remove(edge.from as usize, edge.to as usize);
+        }
+        for (id, edge, cov) in accepted {
+            self.links.add(
+                edge.from as usize,
+                edge.to as usize,
+                &edge.measurement,
+                &cov,
+            );
+            self.loops.insert(id, edge);
+        }
+        true
+    }
+
+    /// Ids of the accepted loops.
+    pub fn loop_ids(&self) -> impl Iterator<Item = usize> + '_ {
+        self.loops.keys().copied()
+    }
+
+    /// The graph at the current estimate, node 0 fixed.
+    pub fn graph(&self) -> Result<PoseGraph, SlamError> {
+        let mut graph = PoseGraph::new();
+        for (i, (pose, stamp_s)) in self.poses.iter().zip(&self.stamps_s).enumerate() {
+            graph.add_node(Node {
+                id: i as NodeId,
+                pose: *pose,
+                stamp_s: Some(*stamp_s),
+            })?;
+        }
+        for edge in self.chain.iter().chain(self.loops.values()) {
+            graph.add_edge(edge.clone())?;
+        }
+        if !self.poses.is_empty() {
+            graph.fix(0)?;
+        }
+        Ok(graph)
+    }
+
+    /// An incremental solve from the current estimate.
+    pub fn optimise_incremental(&mut self) -> Result<SolveSummary, SlamError> {
+        let mut graph = self.graph()?;
+        let summary = self.solver.optimize(&mut graph)?;
+        self.poses = graph.poses();
+        self.incremental_solves += 1;
+        self.incremental_symbolic_reused += usize::from(summary.symbolic_reused);
+        self.incremental_time_s += summary.time_s;
+        Ok(summary)
+    }
+
+    /// The final batch solve with `backend.solver`; returns the optimised
+    /// graph and the summary, and keeps the solution as the estimate.
+    pub fn optimise_batch(
+        &mut self,
+        backend: &BackendConfig,
+    ) -> Result<(PoseGraph, SolveSummary), SlamError> {
+        let mut graph = self.graph()?;
+        let summary = Solver::new(backend.solver.clone())?.optimize(&mut graph)?;
+        self.poses = graph.poses();
+        Ok((graph, summary))
+    }
+}
+
+/// Position information of a heading prior, 1/m².
+const PRIOR_POSITION_INFORMATION: f64 = 1e-12;
+
+/// An edge with information `cov⁻¹`; a covariance that is not positive
+/// definite is an error naming the edge.
+pub fn make_edge(
+    kind: EdgeKind,
+    from: usize,
+    to: usize,
+    from_from_to: Se2,
+    cov: &Matrix3<f64>,
+    metadata: Option<serde_json::Value>,
+) -> Result<Edge, SlamError> {
+    let info = information(cov).ok_or(SlamError::Graph(
+        echofield_graph::GraphError::InformationNotPositiveDefinite {
+            from: from as NodeId,
+            to: to as NodeId,
+        },
+    ))?;
+    Ok(Edge {
+        kind,
+        from: from as NodeId,
+        to: to as NodeId,
+        measurement: from_from_to,
+        information: info,
+        metadata,
+    })
+}

@@ -1,0 +1,305 @@
+//! Evaluation of a run against the mission's ground truth. Runs after the
+//! estimation is finished; nothing here feeds back into it.
+//!
+//! Definitions (also written into `report.json` under `definitions`):
+//! - **ATE**: RMSE of the position error of the optimised node poses (and,
+//!   for comparison, of the dead-reckoning poses at the same stamps)
+//!   against the ground truth interpolated at the node stamps, after the
+//!   best SE(2) alignment ([`crate::eval::ate`]).
+//! - **RPE** per distance: [`crate::eval::rpe`] over the node poses.
+//! - **Distance travelled**: the ground-truth path length between the first
+//!   and the last node stamp (every ground-truth sample in between).
+//! - **True positive loop**: its measurement (`from_from_to` of the edge)
+//!   is within
+//!   `true_positive_translation_m` and `true_positive_rotation_deg` of the
+//!   ground-truth relative pose. **Precision** = true positives / accepted
+//!   loops (absent when none is accepted).
+//! - **Ground-truth scan overlap** of a node pair `(j, k)`: the fraction of
+//!   the points of `S_k`, placed in `j`'s frame with the ground-truth
+//!   relative pose, that fall in a cell of side `overlap_distance_m`
+//!   holding a point of `S_j` or next to such a cell (so within about
+//!   1-2 cell sides of a point of `S_j`): the share of what `k` saw that
+//!   `j` saw too.
+//! - **Recall pairs**: node pairs `(j, k)` with `k - j >=
+//!   loops.min_separation_nodes` and ground-truth scan overlap at least
+//!   `recall_min_overlap`, whether or not the pipeline picked them as
+//!   candidates. A **revisit** is a node `k` that is the newer node of at
+//!   least one recall pair: the vehicle is back where it has been.
+//! - **Recall** (`loop_recall`) = revisits `k` that are the newer node of
+//!   at least one accepted true-positive loop / revisits: how many of the
+//!   returns to a known place the pipeline recognised. Every node is only
+//!   matched against a few older ones (`loops.max_candidates_per_node`),
+//!   so the pair-level figure, `loop_recall_pairs` = recall pairs joined
+//!   by an accepted true-positive loop / recall pairs, is reported too; it
+//!   is much lower by construction (a revisit overlaps many older nodes).
+
+use super::config::SlamConfig;
+use super::nodes::NodeData;
+use super::result::{LoopEvaluation, LoopRecord, NodeRecord, Report};
+use crate::eval::{Alignment, ate, cumulative_distance, rpe};
+use crate::matching::ground_truth_at;
+use echofield_frontend::scan::Scan;
+use echofield_frontend::sensors::GroundTruthPose;
+use echofield_graph::Se2;
+use echofield_graph::io::TrajectoryPose;
+use std::collections::{BTreeMap, HashSet};
+
+/// Stamps of the same node agree exactly; any small tolerance works.
+const MAX_TIME_DIFF_S: f64 = 1e-3;
+
+/// Fills the ground-truth fields of `nodes`, `loops` and `report`. Does
+/// nothing when `ground_truth` is empty.
+pub fn evaluate(
+    ground_truth: &[GroundTruthPose],
+    node_data: &[NodeData],
+    nodes: &mut [NodeRecord],
+    loops: &mut [LoopRecord],
+    config: &SlamConfig,
+    report: &mut Report,
+) {
+    if ground_truth.is_empty() {
+        return;
+    }
+    for node in nodes.iter_mut() {
+        node.ground_truth = ground_truth_at(ground_truth, node.stamp_s);
+    }
+    trajectory_errors(ground_truth, nodes, config, report);
+    let eval = &config.evaluation;
+    let gt: Vec<Option<Se2>> = nodes.iter().map(|n| n.ground_truth).collect();
+    let relative = |j: usize, k: usize| Some(gt[j]?.between(&gt[k]?));
+    let grids: Vec<OccupancyGrid> = node_data
+        .iter()
+        .map(|n| OccupancyGrid::new(&n.scan, eval.overlap_distance_m))
+        .collect();
+    let overlap = |j: usize, k: usize| -> Option<f64> {
+        let j_from_k = relative(j, k)?;
+        let reach = node_data[j].footprint_m + node_data[k].footprint_m;
+        if j_from_k.translation().norm() > reach {
+            return Some(0.0);
+        }
+        Some(grids[j].overlap(&node_data[k].scan, &j_from_k))
+    };
+    let mut true_positive_pairs = HashSet::new();
+    let (mut tp, mut fp, mut candidate_tp) = (0, 0, 0);
+    for record in loops.iter_mut() {
+        let (j, k) = (record.from as usize, record.to as usize);
+        record.ground_truth = relative(j, k);
+        record.gt_overlap = overlap(j, k);
+        let (Some(truth), Some(matched)) = (record.ground_truth, record.measurement) else {
+            continue;
+        };
+        let error = truth.between(&matched);
+        record.gt_error_m = Some(error.translation().norm());
+        record.gt_error_deg = Some(error.theta().abs().to_degrees());
+        let is_tp = error.translation().norm() <= eval.true_positive_translation_m
+            && error.theta().abs().to_degrees() <= eval.true_positive_rotation_deg;
+        record.true_positive = Some(is_tp);
+        candidate_tp += usize::from(is_tp);
+        if record.accepted {
+            if is_tp {
+                tp += 1;
+                true_positive_pairs.insert((j, k));
+            } else {
+                fp += 1;
+            }
+        }
+    }
+    let min_separation = config.loops.min_separation_nodes;
+    let (mut recall_pairs, mut recalled_pairs) = (0, 0);
+    let (mut recall_nodes, mut recalled_nodes) = (0, 0);
+    let closed: HashSet<usize> = true_positive_pairs.iter().map(|&(_, k)| k).collect();
+    for k in min_separation..nodes.len() {
+        let mut revisit = false;
+        for j in 0..=k - min_separation {
+            if overlap(j, k).is_some_and(|o| o >= eval.recall_min_overlap) {
+                revisit = true;
+                recall_pairs += 1;
+                recalled_pairs += usize::from(true_positive_pairs.contains(&(j, k)));
+            }
+        }
+        if revisit {
+            recall_nodes += 1;
+            recalled_nodes += usize::from(closed.contains(&k));
+        }
+    }
+    report.loop_precision = (tp + fp > 0).then(|| tp as f64 / (tp + fp) as f64);
+    report.loop_recall = (recall_nodes > 0).then(|| recalled_nodes as f64 / recall_nodes as f64);
+    report.loop_recall_pairs =
+        (recall_pairs > 0).then(|| recalled_pairs as f64 / recall_pairs as f64);
+    report.loop_evaluation = Some(LoopEvaluation {
+        true_positives: tp,
+        false_positives: fp,
+        recall_nodes,
+        recalled_nodes,
+        recall_pairs,
+        recalled_pairs,
+        candidate_true_positives: candidate_tp,
+    });
+    report.definitions = definitions(config);
+}
+
+/// ATE, RPE and distance travelled.
+fn trajectory_errors(
+    ground_truth: &[GroundTruthPose],
+    nodes: &[NodeRecord],
+    config: &SlamConfig,
+    report: &mut Report,
+) {
+    let covered: Vec<&NodeRecord> = nodes.iter().filter(|n| n.ground_truth.is_some()).collect();
+    let trajectory = |pose: &dyn Fn(&NodeRecord) -> Se2| -> Vec<TrajectoryPose> {
+        covered
+            .iter()
+            .map(|n| TrajectoryPose {
+                stamp_s: n.stamp_s,
+                pose: pose(n),
+            })
+            .collect()
+    };
+    let reference = trajectory(&|n| n.ground_truth.expect("filtered"));
+    let optimised = trajectory(&|n| n.optimised);
+    let dead_reckoning = trajectory(&|n| n.dead_reckoning);
+    if reference.len() < 2 {
+        return;
+    }
+    report.ate = ate(&optimised, &reference, Alignment::Se2, MAX_TIME_DIFF_S).ok();
+    report.ate_dead_reckoning =
+        ate(&dead_reckoning, &reference, Alignment::Se2, MAX_TIME_DIFF_S).ok();
+    report.ate_rmse_m = report.ate.as_ref().map(|a| a.rmse_m);
+    report.ate_rmse_dead_reckoning_m = report.ate_dead_reckoning.as_ref().map(|a| a.rmse_m);
+    let distances = &config.evaluation.rpe_distances_m;
+    report.rpe = Some(rpe(&optimised, &reference, distances, MAX_TIME_DIFF_S));
+    report.rpe_dead_reckoning = Some(rpe(&dead_reckoning, &reference, distances, MAX_TIME_DIFF_S));
+    let (start_s, end_s) = (reference[0].stamp_s, reference[reference.len() - 1].stamp_s);
+    let mut path: Vec<Se2> = vec![reference[0].pose];
+    path.extend(
+        ground_truth
+            .iter()
+            .filter(|g| g.stamp_s > start_s && g.stamp_s < end_s)
+            .map(|g| g.world_from_vehicle),
+    );
+    path.push(reference[reference.len() - 1].pose);
+    report.distance_travelled_m = cumulative_distance(&path).last().copied();
+}
+
+/// The cells of side `cell_m` holding a point of a scan, dilated by one
+/// cell (a dense bitmap over the scan's bounding box).
+struct OccupancyGrid {
+    cell_m: f64,
+    origin: (i64, i64),
+    width: i64,
+    height: i64,
+    occupied: Vec<bool>,
+}
+
+impl OccupancyGrid {
+    fn new(scan: &Scan, cell_m: f64) -> Self {
+        let cells: Vec<(i64, i64)> = scan
+            .points
+            .iter()
+            .map(|p| ((p.x / cell_m).floor() as i64, (p.y / cell_m).floor() as i64))
+            .collect();
+        let min_x = cells.iter().map(|c| c.0).min().unwrap_or(0) - 1;
+        let min_y = cells.iter().map(|c| c.1).min().unwrap_or(0) - 1;
+        let max_x = cells.iter().map(|c| c.0).max().unwrap_or(0) + 1;
+        let max_y = cells.iter().map(|c| c.1).max().unwrap_or(0) + 1;
+        let (width, height) = (max_x - min_x + 1, max_y - min_y + 1);
+        let mut occupied = vec![false; (width * height) as usize];
+        for (cx, cy) in cells {
+            for dy in -1..=1 {
+                for dx in -1..=1 {
+                    let (x, y) = (cx + dx - min_x, cy + dy - min_y);
+                    occupied[(y * width + x) as usize] = true;
+                }
+            }
+        }
+        Self {
+            cell_m,
+            origin: (min_x, min_y),
+            width,
+            height,
+            occupied,
+        }
+    }
+
+    fn contains(&self, x_m: f64, y_m: f64) -> bool {
+        let x = (x_m / self.cell_m).floor() as i64 - self.origin.0;
+        let y = (y_m / self.cell_m).floor() as i64 - self.origin.1;
+        x >= 0
+            && y >= 0
+            && x < self.width
+            && y < self.height
+            && self.occupied[(y * self.width + x) as usize]
+    }
+
+    /// Fraction of `scan`'s points that land on the grid under `pose`.
+    fn overlap(&self, scan: &Scan, pose: &Se2) -> f64 {
+        if scan.is_empty() || self.occupied.is_empty() {
+            return 0.0;
+        }
+        let hits = scan
+            .points
+            .iter()
+            .filter(|p| {
+                let (x, y) = pose.transform_xy(p.x, p.y);
+                self.contains(x, y)
+            })
+            .count();
+        hits as f64 / scan.len() as f64
+    }
+}
+
+/// The definitions of the evaluation numbers, for `report.json`.
+fn definitions(config: &SlamConfig) -> BTreeMap<String, String> {
+    let e = &config.evaluation;
+    let entries = [
+        ("ate_rmse_m", "RMSE of the position error of the optimised node poses against the ground truth interpolated at the node stamps, after the best SE(2) alignment".to_string()),
+        ("ate_rmse_dead_reckoning_m", "the same for the dead-reckoning poses at the node stamps".to_string()),
+        ("distance_travelled_m", "ground-truth path length between the first and the last node stamp".to_string()),
+        ("rpe", "relative pose error over the node poses: for each node, the first later node at least d metres further along the ground-truth path".to_string()),
+        ("true_positive", format!("an accepted loop whose edge measurement is within {} m and {} deg of the ground-truth relative pose", e.true_positive_translation_m, e.true_positive_rotation_deg)),
+        ("loop_precision", "true positives / accepted loops (absent when no loop is accepted)".to_string()),
+        ("gt_overlap", format!("fraction of the points of S_k, placed in node j's frame with the ground-truth relative pose, that fall in a {0} m cell holding a point of S_j or next to one", e.overlap_distance_m)),
+        ("recall_pair", format!("a node pair (j, k) with k - j >= {} and ground-truth scan overlap >= {}", config.loops.min_separation_nodes, e.recall_min_overlap)),
+        ("loop_recall", "revisit nodes (the newer node of at least one recall pair) that are the newer node of an accepted true-positive loop, over all revisit nodes".to_string()),
+        ("loop_recall_pairs", "recall pairs joined by an accepted true-positive loop, over all recall pairs".to_string()),
+    ];
+    entries
+        .into_iter()
+        .map(|(k, v)| (k.to_string(), v))
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Point2;
+
+    fn scan(points: Vec<Point2<f64>>) -> Scan {
+        let n = points.len();
+        Scan {
+            reference_stamp_s: 0.0,
+            points,
+            intensities: vec![100.0; n],
+            beam_indices: (0..n as u32).collect(),
+        }
+    }
+
+    #[test]
+    fn overlap_of_a_wall_seen_twice() {
+        // A wall along y = 5 from x = 0 to 20 m, one point per 0.1 m.
+        let wall: Vec<Point2<f64>> = (0..200).map(|i| Point2::new(i as f64 * 0.1, 5.0)).collect();
+        let grid = OccupancyGrid::new(&scan(wall.clone()), 0.5);
+        // The same wall from the same place: all of it.
+        assert_eq!(grid.overlap(&scan(wall.clone()), &Se2::identity()), 1.0);
+        // From 10 m further along x: half of it lies beyond the end.
+        let k_points: Vec<Point2<f64>> = wall.iter().map(|p| Point2::new(p.x, p.y)).collect();
+        let half = grid.overlap(&scan(k_points.clone()), &Se2::new(10.0, 0.0, 0.0));
+        assert!((half - 0.5).abs() < 0.03, "{half}");
+        // Placed 3 m off the wall: nothing.
+        assert_eq!(grid.overlap(&scan(k_points), &Se2::new(0.0, 3.0, 0.0)), 0.0);
+        // An empty scan overlaps nothing and is overlapped by nothing.
+        let empty = OccupancyGrid::new(&scan(Vec::new()), 0.5);
+        assert_eq!(empty.overlap(&scan(wall.clone()), &Se2::identity()), 0.0);
+        assert_eq!(grid.overlap(&scan(Vec::new()), &Se2::identity()), 0.0);
+    }
+}

@@ -1,0 +1,412 @@
+//! Loop closing: candidates, matches, checks and mutual consistency.
+//!
+//! For each new node `k` with a scan:
+//! 1. **Gating by predicted overlap.** Every older node `j` at least
+//!    `min_separation_nodes` rotations back whose image holds echoes is a
+//!    candidate when the fraction of `S_k`'s points that the current
+//!    estimate places within `j`'s footprint (the range of 90% of `S_j`'s
+//!    returns) is at least `min_predicted_overlap`. At most
+//!    `max_candidates_per_node` of them are taken, largest overlap first.
+//! 2. **Gating by uncertainty.** The prior `j_from_k` is the current
+//!    estimate; its covariance the relative uncertainty of the two nodes
+//!    (module [`super::uncertainty`]). The search window is `n_sigma`
+//!    standard deviations per axis, at least `min_window`. A candidate whose
+//!    window would exceed `max_window` is *deferred*: it is retried after
+//!    the next change of the accepted loops (which usually makes the
+//!    relative uncertainty small), and reported as `deferred` if it never
+//!    qualifies. Only when none of a node's candidates is certain enough
+//!    (a first contact with a place seen long ago) are the best
+//!    `wide_searches_per_node` of them searched over `max_window` at once.
+//! 3. **Matching and checks** ([`checks`]): `S_k` vs `I_j`, quality,
+//!    covariance, window edge, and the symmetric match `S_j` vs `I_k`.
+//! 4. **Mutual consistency** ([`consistency`]): the loops that passed their
+//!    own checks form a consistency graph; the accepted loops are its
+//!    maximum clique, recomputed whenever a loop is added (so a loop
+//!    accepted early can be dropped later when the evidence turns against
+//!    it). Accepted loops become `Loop` edges with the match covariance
+//!    plus the `min_sigma` floor; the backend's robust kernel on loop edges
+//!    is the last line of defence.
+
+pub mod checks;
+pub mod config;
+pub mod consistency;
+
+pub use config::LoopConfig;
+
+use super::SlamError;
+use super::estimate::{Estimate, make_edge};
+use super::nodes::{NodeData, predicted_overlap};
+use super::result::{LoopRecord, RejectReason};
+use super::uncertainty::{DriftModel, invert, translation_trace, with_floor};
+use checks::{Candidate, examine};
+use consistency::{Clique, ConsistencyGraph, DeadReckoningChain, LoopMeasurement};
+use echofield_frontend::matcher::{MatcherConfig, SearchWindow};
+use echofield_graph::{EdgeKind, Se2};
+use nalgebra::Matrix3;
+use std::collections::HashSet;
+
+/// Every `OVERLAP_STRIDE`-th scan point is used to predict the overlap.
+const OVERLAP_STRIDE: usize = 4;
+/// Rounds of retrying deferred candidates after the accepted set changes.
+const MAX_RETRY_ROUNDS: usize = 3;
+/// Pairs considered per node, in multiples of `max_candidates_per_node`,
+/// before the uncertainty gate.
+const CANDIDATE_POOL: usize = 3;
+/// Deferred candidates kept waiting at most; older ones stay `deferred`.
+const MAX_WAITING: usize = 64;
+
+/// The loop-closing state of a run.
+pub struct LoopCloser<'a> {
+    config: &'a LoopConfig,
+    matcher: &'a MatcherConfig,
+    /// Every candidate considered, in order; the record index is the loop id.
+    pub records: Vec<LoopRecord>,
+    candidates: Vec<Candidate>,
+    examined: HashSet<(usize, usize)>,
+    /// Record indices of deferred candidates still waiting.
+    deferred: Vec<usize>,
+    consistency: ConsistencyGraph,
+    pub chain: DeadReckoningChain,
+    /// The current maximum clique.
+    pub accepted: Clique,
+    /// Clique searches that stopped at the call limit.
+    pub inexact_cliques: usize,
+    /// Matches run (forward and reverse).
+    pub matches: usize,
+    /// Time spent on mutual consistency, s.
+    pub validation_time_s: f64,
+    /// Candidates searched over `max_window` (first contacts).
+    pub wide_searches: usize,
+}
+
+impl<'a> LoopCloser<'a> {
+    pub fn new(config: &'a LoopConfig, matcher: &'a MatcherConfig) -> Self {
+        let drift = DriftModel {
+            drift_fraction: config.drift_fraction,
+            heading_sigma_rad: config.drift_heading_sigma_rad,
+        };
+        Self {
+            config,
+            matcher,
+            records: Vec::new(),
+            candidates: Vec::new(),
+            examined: HashSet::new(),
+            deferred: Vec::new(),
+            consistency: ConsistencyGraph::new(),
+            chain: DeadReckoningChain::new(drift),
+            accepted: Clique {
+                ids: Vec::new(),
+                exact: true,
+            },
+            inexact_cliques: 0,
+            matches: 0,
+            validation_time_s: 0.0,
+            wide_searches: 0,
+        }
+    }
+
+    /// Looks for loops of the newest node `k`, then retries deferred
+    /// candidates while the accepted set changes. Runs the incremental
+    /// solves through `optimise` whenever the accepted loops change.
+    pub fn close_loops(
+        &mut self,
+        k: usize,
+        nodes: &[NodeData],
+        estimate: &mut Estimate,
+        optimise: &mut dyn FnMut(&mut Estimate) -> Result<(), SlamError>,
+    ) -> Result<(), SlamError> {
+        if !self.config.enabled || k < self.config.min_separation_nodes {
+            return Ok(());
+        }
+        let candidates = self.candidates_of(k, nodes, estimate);
+        let mut changed = self.process(candidates, k, nodes, estimate)?;
+        for _ in 0..MAX_RETRY_ROUNDS {
+            if !changed {
+                break;
+            }
+            optimise(estimate)?;
+            changed = self.retry_deferred(k, nodes, estimate)?;
+        }
+        Ok(())
+    }
+
+    /// Gated candidates of node `k` (steps 1-2 of the module doc).
+    fn candidates_of(
+        &mut self,
+        k: usize,
+        nodes: &[NodeData],
+        estimate: &Estimate,
+    ) -> Vec<Candidate> {
+        let node = &nodes[k];
+        if !node.matchable() {
+            return Vec::new();
+        }
+        let poses = estimate.poses();
+        let mut overlaps: Vec<(usize, f64)> = (0..=k - self.config.min_separation_nodes)
+            .filter(|&j| nodes[j].matchable() && !self.examined.contains(&(j, k)))
+            .filter_map(|j| {
+                let j_from_k = poses[j].between(&poses[k]);
+                let reach = nodes[j].footprint_m + node.footprint_m;
+                if j_from_k.translation().norm() > reach {
+                    return None;
+                }
+                let overlap = predicted_overlap(
+                    &node.scan.points,
+                    &j_from_k,
+                    nodes[j].footprint_m,
+                    OVERLAP_STRIDE,
+                );
+                (overlap >= self.config.min_predicted_overlap).then_some((j, overlap))
+            })
+            .collect();
+        overlaps.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
+        let max = self.config.max_candidates_per_node;
+        overlaps.truncate(CANDIDATE_POOL * max);
+        if overlaps.is_empty() {
+            return Vec::new();
+        }
+        let path = estimate.links().relative_from(k, poses);
+        // The best-overlapping candidates that can be searched now, and as
+        // many again of those too uncertain for now (deferred).
+        let (mut ready, mut waiting) = (Vec::new(), Vec::new());
+        for (j, overlap) in overlaps {
+            let c = self.candidate(j, k, overlap, path[j].as_ref(), poses);
+            if !c.too_uncertain(&self.config.max_window) {
+                if ready.len() < max {
+                    ready.push(c);
+                }
+            } else if waiting.len() < max {
+                waiting.push(c);
+            }
+        }
+        // A first contact with a place seen long ago: nothing can be
+        // searched in a small window, so the best-overlapping candidates
+        // are searched over the largest window now; the checks and the
+        // consistency test decide.
+        if ready.is_empty() {
+            let wide = self.config.wide_searches_per_node.min(waiting.len());
+            for mut c in waiting.drain(..wide) {
+                c.wide = true;
+                ready.push(c);
+            }
+            self.wide_searches += wide;
+        }
+        ready.extend(waiting);
+        ready
+    }
+
+    /// The prior and window of the pair `(j, k)`.
+    fn candidate(
+        &self,
+        j: usize,
+        k: usize,
+        overlap: f64,
+        k_from_j_cov: Option<&Matrix3<f64>>,
+        poses: &[Se2],
+    ) -> Candidate {
+        let prior = poses[j].between(&poses[k]);
+        let k_from_j = prior.inverse();
+        let from_path = k_from_j_cov.map(|c| invert(&k_from_j, c).1);
+        let from_dr = Some(self.chain.relative(j, k).1);
+        // Both are upper bounds of the true relative uncertainty: the
+        // window takes the tighter one per axis.
+        let covs: Vec<Matrix3<f64>> = from_path.into_iter().chain(from_dr).collect();
+        let cov = covs
+            .iter()
+            .copied()
+            .min_by(|a, b| translation_trace(a).total_cmp(&translation_trace(b)))
+            .unwrap_or_else(|| Matrix3::from_diagonal(&nalgebra::Vector3::new(1e6, 1e6, 10.0)));
+        let n = self.config.n_sigma;
+        let sd = |axis: usize| {
+            let var = covs
+                .iter()
+                .map(|c| c[(axis, axis)])
+                .fold(f64::INFINITY, f64::min);
+            n * if var.is_finite() {
+                var.max(0.0).sqrt()
+            } else {
+                1e3
+            }
+        };
+        Candidate {
+            from: j,
+            to: k,
+            prior,
+            prior_covariance: cov,
+            predicted_overlap: overlap,
+            raw_window: SearchWindow::new(sd(0), sd(1), sd(2).min(std::f64::consts::PI)),
+            wide: false,
+        }
+    }
+
+    /// Matches or defers `candidates`; returns whether the accepted set
+    /// changed.
+    fn process(
+        &mut self,
+        candidates: Vec<Candidate>,
+        k: usize,
+        nodes: &[NodeData],
+        estimate: &mut Estimate,
+    ) -> Result<bool, SlamError> {
+        let mut passed = Vec::new();
+        for candidate in candidates {
+            self.examined.insert((candidate.from, candidate.to));
+            let id = self.records.len();
+            if candidate.too_uncertain(&self.config.max_window) && !candidate.wide {
+                let mut record = candidate.record(k, self.config);
+                record.rejected_by = Some(RejectReason::Deferred);
+                self.records.push(record);
+                self.candidates.push(candidate);
+                self.deferred.push(id);
+                if self.deferred.len() > MAX_WAITING {
+                    self.deferred.remove(0);
+                }
+                continue;
+            }
+            let record = self.examine(&candidate, k, nodes)?;
+            if record.rejected_by.is_none() {
+                passed.push(id);
+            }
+            self.records.push(record);
+            self.candidates.push(candidate);
+        }
+        Ok(self.admit(passed, estimate))
+    }
+
+    fn examine(
+        &mut self,
+        candidate: &Candidate,
+        k: usize,
+        nodes: &[NodeData],
+    ) -> Result<LoopRecord, SlamError> {
+        let record = examine(candidate, k, nodes, self.matcher, self.config)?;
+        self.matches += usize::from(record.matched.is_some() || record.no_match.is_some());
+        self.matches += usize::from(record.reverse.is_some());
+        Ok(record)
+    }
+
+    /// Retries the deferred candidates with the current estimate.
+    fn retry_deferred(
+        &mut self,
+        k: usize,
+        nodes: &[NodeData],
+        estimate: &mut Estimate,
+    ) -> Result<bool, SlamError> {
+        let waiting = std::mem::take(&mut self.deferred);
+        let mut passed = Vec::new();
+        let mut paths: Vec<(usize, Vec<Option<Matrix3<f64>>>)> = Vec::new();
+        for id in waiting {
+            let (j, to, overlap) = {
+                let c = &self.candidates[id];
+                (c.from, c.to, c.predicted_overlap)
+            };
+            if !paths.iter().any(|(t, _)| *t == to) {
+                paths.push((to, estimate.links().relative_from(to, estimate.poses())));
+            }
+            let path = &paths.iter().find(|(t, _)| *t == to).expect("just added").1;
+            let candidate = self.candidate(j, to, overlap, path[j].as_ref(), estimate.poses());
+            if candidate.too_uncertain(&self.config.max_window) {
+                self.deferred.push(id);
+                continue;
+            }
+            let record = self.examine(&candidate, k, nodes)?;
+            if record.rejected_by.is_none() {
+                passed.push(id);
+            }
+            self.records[id] = record;
+            self.candidates[id] = candidate;
+        }
+        Ok(self.admit(passed, estimate))
+    }
+
+    /// Adds loops that passed their checks to the consistency graph,
+    /// recomputes the maximum clique and updates the estimate's loop
+    /// edges. Returns whether the accepted set changed.
+    fn admit(&mut self, passed: Vec<usize>, estimate: &mut Estimate) -> bool {
+        if passed.is_empty() {
+            return false;
+        }
+        let start = std::time::Instant::now();
+        for id in passed {
+            let record = &self.records[id];
+            let (Some(z), Some(cov)) = (record.measurement, record.covariance) else {
+                continue;
+            };
+            let covariance = with_floor(&cov, &self.config.min_sigma);
+            let measurement = LoopMeasurement {
+                id,
+                from: record.from as usize,
+                to: record.to as usize,
+                z,
+                covariance,
+            };
+            self.consistency
+                .add(measurement, &self.chain, self.config.consistency_max_chi2);
+        }
+        let clique = self.consistency.max_clique();
+        self.inexact_cliques += usize::from(!clique.exact);
+        self.accepted = clique;
+        self.validation_time_s += start.elapsed().as_secs_f64();
+        estimate.set_loops(self.accepted_edges())
+    }
+
+    /// The loop edges of the accepted set, with their covariances.
+    fn accepted_edges(&self) -> Vec<(usize, echofield_graph::Edge, Matrix3<f64>)> {
+        self.accepted
+            .ids
+            .iter()
+            .filter_map(|&id| {
+                let m = self.consistency.measurement(id)?;
+                let metadata = loop_metadata(&self.records[id]);
+                let edge =
+                    make_edge(EdgeKind::Loop, m.from, m.to, m.z, &m.covariance, metadata).ok()?;
+                Some((id, edge, m.covariance))
+            })
+            .collect()
+    }
+
+    /// Takes accepted loops out again (e.g. outliers of the final solve),
+    /// with `reason`, and updates the estimate's loop edges.
+    pub fn reject(&mut self, ids: &[usize], reason: RejectReason, estimate: &mut Estimate) {
+        self.accepted.ids.retain(|id| !ids.contains(id));
+        for &id in ids {
+            self.records[id].accepted = false;
+            self.records[id].rejected_by = Some(reason);
+        }
+        estimate.set_loops(self.accepted_edges());
+    }
+
+    /// Marks the final verdicts: accepted for the clique members, rejected
+    /// as `inconsistent` for loops that passed their checks but are not in
+    /// it; deferred candidates keep `deferred`.
+    pub fn finish(&mut self) {
+        let accepted: HashSet<usize> = self.accepted.ids.iter().copied().collect();
+        for (id, record) in self.records.iter_mut().enumerate() {
+            record.accepted = accepted.contains(&id);
+            if record.rejected_by.is_none() && !record.accepted {
+                record.rejected_by = Some(RejectReason::Inconsistent);
+            }
+        }
+    }
+
+    /// Ids and measurements of the accepted loops.
+    pub fn accepted_measurements(&self) -> Vec<LoopMeasurement> {
+        self.accepted
+            .ids
+            .iter()
+            .filter_map(|&id| self.consistency.measurement(id).cloned())
+            .collect()
+    }
+}
+
+/// What a loop edge carries besides its measurement (g2o drops it).
+pub fn loop_metadata(record: &LoopRecord) -> Option<serde_json::Value> {
+    let quality = record.quality.as_ref()?;
+    Some(serde_json::json!({
+        "score": record.score,
+        "mean_intensity": quality.mean_intensity,
+        "inside_fraction": quality.inside_fraction,
+        "second_peak_ratio": quality.second_peak_ratio,
+        "points": quality.points,
+    }))
+}

@@ -1,0 +1,245 @@
+//! Matching one loop candidate and the checks it must pass on its own.
+//!
+//! `S_k` (the newer node) is matched against `I_j` around the prior
+//! `j_from_k` (eq. 5-6). The checks, in order, each naming the
+//! [`RejectReason`] of a failure:
+//! 1. `no_data` / `no_match`: a scan or image without echoes, or no pose in
+//!    the window with any overlap;
+//! 2. `quality`: mean intensity under the points, fraction of points inside
+//!    the image, and the second-peak ratio (a distinct maximum);
+//! 3. `covariance`: positive definite, standard deviations within
+//!    `max_sigma`;
+//! 4. `window_edge`: the maximum is not at the border of the searched
+//!    window (where the true peak may lie outside it); a match at the
+//!    border is searched once more over twice the window (at most
+//!    `max_window`) before this check is final;
+//! 5. `reverse_mismatch`: the symmetric match `S_j` vs `I_k` around the
+//!    inverse of the forward result must agree with it.
+
+use super::LoopConfig;
+use crate::slam::SlamError;
+use crate::slam::config::Window;
+use crate::slam::nodes::NodeData;
+use crate::slam::result::{LoopRecord, RejectReason};
+use crate::slam::symmetric::{Tolerance, reverse_match};
+use crate::slam::uncertainty::symmetric;
+use echofield_frontend::matcher::{
+    MatchOutcome, MatchResult, MatcherConfig, SearchWindow, match_scan,
+};
+use echofield_graph::Se2;
+use nalgebra::Matrix3;
+
+/// A pair to match: `S_to` against `I_from` around `prior = from_from_to`.
+#[derive(Clone, Debug)]
+pub struct Candidate {
+    pub from: usize,
+    pub to: usize,
+    pub prior: Se2,
+    pub prior_covariance: Matrix3<f64>,
+    pub predicted_overlap: f64,
+    /// `n_sigma` standard deviations per axis, before clamping.
+    pub raw_window: SearchWindow,
+    /// Searched over `max_window` although its raw window is larger (see
+    /// `LoopConfig::wide_searches_per_node`).
+    pub wide: bool,
+}
+
+impl Candidate {
+    /// The raw window exceeds `max` on some axis.
+    pub fn too_uncertain(&self, max: &Window) -> bool {
+        self.raw_window.x_m > max.x_m
+            || self.raw_window.y_m > max.y_m
+            || self.raw_window.theta_rad > max.theta_rad
+    }
+
+    /// The window searched: the raw one clamped to `[min, max]`.
+    pub fn window(&self, config: &LoopConfig) -> SearchWindow {
+        let (lo, hi) = (&config.min_window, &config.max_window);
+        SearchWindow::new(
+            self.raw_window.x_m.clamp(lo.x_m, hi.x_m),
+            self.raw_window.y_m.clamp(lo.y_m, hi.y_m),
+            self.raw_window.theta_rad.clamp(lo.theta_rad, hi.theta_rad),
+        )
+    }
+
+    /// A record of this candidate before matching.
+    pub fn record(&self, examined_at: usize, config: &LoopConfig) -> LoopRecord {
+        LoopRecord {
+            from: self.from as u64,
+            to: self.to as u64,
+            examined_at: examined_at as u64,
+            prior: self.prior,
+            prior_covariance: self.prior_covariance,
+            predicted_overlap: self.predicted_overlap,
+            window: self.window(config),
+            matched: None,
+            measurement: None,
+            score: None,
+            quality: None,
+            covariance: None,
+            reverse: None,
+            accepted: false,
+            rejected_by: None,
+            no_match: None,
+            robust_weight: None,
+            ground_truth: None,
+            gt_error_m: None,
+            gt_error_deg: None,
+            true_positive: None,
+            gt_overlap: None,
+        }
+    }
+}
+
+/// Matches `candidate` and runs the individual checks; the record says
+/// whether it passed (`rejected_by == None`).
+pub fn examine(
+    candidate: &Candidate,
+    examined_at: usize,
+    nodes: &[NodeData],
+    matcher: &MatcherConfig,
+    config: &LoopConfig,
+) -> Result<LoopRecord, SlamError> {
+    let mut record = candidate.record(examined_at, config);
+    let (old, new) = (&nodes[candidate.from], &nodes[candidate.to]);
+    if !new.has_scan() || !old.has_scan() || old.image.is_empty() || new.image.is_empty() {
+        record.rejected_by = Some(RejectReason::NoData);
+        return Ok(record);
+    }
+    if new.in_dvl_gap || old.in_dvl_gap {
+        record.rejected_by = Some(RejectReason::DvlGap);
+        return Ok(record);
+    }
+    let stage = || format!("loop match {} -> {}", candidate.from, candidate.to);
+    let search = |window: &SearchWindow| {
+        match_scan(
+            &new.scan.points,
+            &old.image,
+            &candidate.prior,
+            window,
+            matcher,
+        )
+        .map_err(|e| SlamError::frontend(stage(), e))
+    };
+    let mut outcome = search(&record.window)?;
+    // A maximum at the window's edge says the prior was further off than
+    // its covariance allowed: search once more over twice the window.
+    if let MatchOutcome::Match(m) = &outcome
+        && individual_checks(m, candidate, &record.window, config) == Some(RejectReason::WindowEdge)
+    {
+        let max = &config.max_window;
+        let w = &record.window;
+        let wider = SearchWindow::new(
+            (2.0 * w.x_m).min(max.x_m.max(w.x_m)),
+            (2.0 * w.y_m).min(max.y_m.max(w.y_m)),
+            (2.0 * w.theta_rad).min(max.theta_rad.max(w.theta_rad)),
+        );
+        if wider != *w {
+            record.window = wider;
+            outcome = search(&wider)?;
+        }
+    }
+    let m = match outcome {
+        MatchOutcome::Match(m) => m,
+        MatchOutcome::NoMatch { reason } => {
+            record.rejected_by = Some(RejectReason::NoMatch);
+            record.no_match = Some(reason.to_string());
+            return Ok(record);
+        }
+    };
+    record.matched = Some(m.image_from_scan);
+    record.measurement = Some(m.image_from_scan);
+    record.score = Some(m.score);
+    record.quality = Some(m.quality.clone());
+    record.covariance = Some(m.covariance);
+    record.rejected_by = individual_checks(&m, candidate, &record.window, config);
+    if record.rejected_by.is_some() {
+        return Ok(record);
+    }
+    // The symmetric check: S_j on I_k around the inverse of the result.
+    let tolerance = Tolerance {
+        window: config.reverse_window.search(),
+        max_translation_m: config.reverse_max_translation_m,
+        max_rotation_rad: config.reverse_max_rotation_rad,
+    };
+    let (reverse, measurement) = reverse_match(
+        &m.image_from_scan,
+        &old.scan.points,
+        &new.image,
+        &tolerance,
+        matcher,
+    )
+    .map_err(|e| SlamError::frontend(format!("reverse {}", stage()), e))?;
+    record.reverse = Some(reverse);
+    match measurement {
+        Some(z) => record.measurement = Some(z),
+        None => record.rejected_by = Some(RejectReason::ReverseMismatch),
+    }
+    Ok(record)
+}
+
+/// Checks 2-4 of the module doc.
+fn individual_checks(
+    m: &MatchResult,
+    candidate: &Candidate,
+    window: &SearchWindow,
+    config: &LoopConfig,
+) -> Option<RejectReason> {
+    let q = &m.quality;
+    if q.mean_intensity < config.min_mean_intensity
+        || q.inside_fraction < config.min_inside_fraction
+        || q.second_peak_ratio
+            .is_some_and(|r| r > config.max_second_peak_ratio)
+    {
+        return Some(RejectReason::Quality);
+    }
+    let cov = symmetric(m.covariance);
+    let max = &config.max_sigma;
+    let sigma_ok = cov[(0, 0)].sqrt() <= max.x_m
+        && cov[(1, 1)].sqrt() <= max.y_m
+        && cov[(2, 2)].sqrt() <= max.theta_rad;
+    if cov.cholesky().is_none() || !sigma_ok {
+        return Some(RejectReason::Covariance);
+    }
+    let d = m.image_from_scan.to_vector() - candidate.prior.to_vector();
+    let dtheta = echofield_graph::wrap_angle(d.z);
+    let margin = 1.0 - config.window_edge_fraction;
+    let at_edge = |offset: f64, half: f64| offset.abs() >= margin * half;
+    if at_edge(d.x, window.x_m) || at_edge(d.y, window.y_m) || at_edge(dtheta, window.theta_rad) {
+        return Some(RejectReason::WindowEdge);
+    }
+    None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn candidate(raw: SearchWindow) -> Candidate {
+        Candidate {
+            from: 0,
+            to: 12,
+            prior: Se2::identity(),
+            prior_covariance: Matrix3::identity(),
+            predicted_overlap: 0.8,
+            raw_window: raw,
+            wide: false,
+        }
+    }
+
+    #[test]
+    fn windows_are_clamped_and_large_ones_flagged() {
+        let config = LoopConfig::default();
+        let small = candidate(SearchWindow::new(0.1, 2.0, 0.01));
+        let w = small.window(&config);
+        assert_eq!((w.x_m, w.y_m), (config.min_window.x_m, 2.0));
+        assert_eq!(w.theta_rad, config.min_window.theta_rad);
+        assert!(!small.too_uncertain(&config.max_window));
+        let large = candidate(SearchWindow::new(25.0, 1.0, 0.05));
+        assert!(large.too_uncertain(&config.max_window));
+        assert_eq!(large.window(&config).x_m, config.max_window.x_m);
+        let record = large.record(12, &config);
+        assert_eq!((record.from, record.to, record.examined_at), (0, 12, 12));
+        assert!(record.matched.is_none() && !record.accepted);
+    }
+}

@@ -1,0 +1,199 @@
+//! Parameters of loop closing: candidate gating, match checks and mutual
+//! consistency (TOML section `[loops]`).
+
+use crate::slam::SlamError;
+use crate::slam::config::{Window, check_range, check_window};
+use serde::{Deserialize, Serialize};
+
+/// Loop-closure candidates, their checks and their mutual consistency.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct LoopConfig {
+    /// Look for loop closures at all. Default true.
+    pub enabled: bool,
+    /// Two nodes are loop candidates only when at least this many
+    /// rotations apart (closer pairs are linked by the sequential chain
+    /// anyway). Default 10 (about 2.3 min at 13.8 s per rotation).
+    pub min_separation_nodes: usize,
+    /// Smallest predicted overlap of a candidate: the fraction of the
+    /// points of `S_k`, placed at the current estimate of `j_from_k`, that
+    /// lie within the sonar footprint of node `j` (the range of its
+    /// farthest returns). Default 0.65.
+    pub min_predicted_overlap: f64,
+    /// At most this many candidates are matched per new node, the ones
+    /// with the largest predicted overlap first. Default 4.
+    pub max_candidates_per_node: usize,
+    /// Search half-width in standard deviations of the relative
+    /// uncertainty of the two nodes (propagated along the most certain path
+    /// of the current graph). Default 3.
+    pub n_sigma: f64,
+    /// Smallest search half-widths `[x_m, y_m, theta_rad]`. Default 0.5 m,
+    /// 0.5 m, 3°.
+    pub min_window: Window,
+    /// The largest search half-widths. A candidate whose window would
+    /// exceed this on any axis is *deferred*: tried again when the graph
+    /// has become more certain (after other loops are accepted), and
+    /// reported as `deferred` if it never qualifies; except for the first
+    /// `wide_searches_per_node` of them per node, which are searched over
+    /// this window at once. Default 10 m, 10 m, 10°.
+    pub max_window: Window,
+    /// When none of a node's candidates can be searched in a window within
+    /// `max_window` (a first contact with a place seen long ago, when
+    /// dead-reckoning drift makes the relative uncertainty large), this
+    /// many of them, the best-overlapping, are searched over `max_window`
+    /// at once instead of being deferred. Each costs a few milliseconds.
+    /// Default 1.
+    pub wide_searches_per_node: usize,
+    /// Matches whose mean image intensity under the points is below this
+    /// (`MatchQuality::mean_intensity`, 0-1) are rejected (`quality`).
+    /// Default 0.35.
+    pub min_mean_intensity: f64,
+    /// ... or whose fraction of points inside the image is below this.
+    /// Default 0.75.
+    pub min_inside_fraction: f64,
+    /// ... or whose second-best separated peak scores more than this
+    /// fraction of the best (an ambiguous, e.g. corridor-like, surface);
+    /// only with `matcher.second_peak = true`. Default 1 (no test).
+    pub max_second_peak_ratio: f64,
+    /// Matches whose standard deviation exceeds `[x_m, y_m, theta_rad]` on
+    /// any axis, or whose covariance is not positive definite, are
+    /// rejected (`covariance`). Default 0.5 m, 0.5 m, 3°.
+    pub max_sigma: Window,
+    /// Smallest standard deviations of a loop edge `[x_m, y_m,
+    /// theta_rad]` (the covariance of the score surface is inflated to at
+    /// least these). Default 0.05 m, 0.05 m, 0.5°.
+    pub min_sigma: Window,
+    /// A match that ends within this fraction of the window's half-width
+    /// from its edge is rejected (`window_edge`): the true peak may lie
+    /// outside the searched window. Default 0.05.
+    pub window_edge_fraction: f64,
+    /// Symmetric check: `S_j` is matched against `I_k` around the inverse
+    /// of the forward match, within this window `[x_m, y_m, theta_rad]`.
+    /// Default 0.5 m, 0.5 m, 3°.
+    pub reverse_window: Window,
+    /// The forward match and the inverse of the reverse match must agree
+    /// to within this distance (m) ... Default 0.75 (right matches
+    /// disagree by up to about half a metre, see `slam::symmetric`).
+    pub reverse_max_translation_m: f64,
+    /// ... and this angle (rad). Default 2°.
+    pub reverse_max_rotation_rad: f64,
+    /// Mutual consistency: two loops are consistent when the cycle they
+    /// close with the dead-reckoning motions between their ends has a
+    /// squared Mahalanobis distance below this (3 degrees of freedom;
+    /// 11.34 is the 99% quantile). Default 11.34.
+    pub consistency_max_chi2: f64,
+    /// Model error added to dead-reckoning motions (in search windows and
+    /// in the consistency test) that the EKF's covariance does not hold
+    /// (DVL scale error, a wandering compass error): a standard deviation
+    /// of this fraction of the distance travelled, per axis. Default 0.02.
+    pub drift_fraction: f64,
+    /// ... plus this heading standard deviation (and its lever arm over
+    /// the distance between the two poses), rad. Default 2°.
+    pub drift_heading_sigma_rad: f64,
+}
+
+impl Default for LoopConfig {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            min_separation_nodes: 10,
+            min_predicted_overlap: 0.65,
+            max_candidates_per_node: 4,
+            n_sigma: 3.0,
+            min_window: Window::new(0.5, 0.5, 3.0_f64.to_radians()),
+            max_window: Window::new(10.0, 10.0, 10.0_f64.to_radians()),
+            wide_searches_per_node: 1,
+            min_mean_intensity: 0.35,
+            min_inside_fraction: 0.75,
+            max_second_peak_ratio: 1.0,
+            max_sigma: Window::new(0.5, 0.5, 3.0_f64.to_radians()),
+            min_sigma: Window::new(0.05, 0.05, 0.5_f64.to_radians()),
+            window_edge_fraction: 0.05,
+            reverse_window: Window::new(0.5, 0.5, 3.0_f64.to_radians()),
+            reverse_max_translation_m: 0.75,
+            reverse_max_rotation_rad: 2.0_f64.to_radians(),
+            consistency_max_chi2: 11.34,
+            drift_fraction: 0.02,
+            drift_heading_sigma_rad: 2.0_f64.to_radians(),
+        }
+    }
+}
+
+impl LoopConfig {
+    pub fn validate(&self) -> Result<(), SlamError> {
+        if self.min_separation_nodes < 2 {
+            return Err(SlamError::config(
+                "loops.min_separation_nodes",
+                "must be at least 2 (consecutive nodes are matched sequentially)",
+            ));
+        }
+        check_range(
+            "loops.min_predicted_overlap",
+            self.min_predicted_overlap,
+            0.0,
+            1.0,
+        )?;
+        if self.max_candidates_per_node == 0 {
+            return Err(SlamError::config(
+                "loops.max_candidates_per_node",
+                "must be at least 1 (set `enabled = false` to close no loops)",
+            ));
+        }
+        check_range("loops.n_sigma", self.n_sigma, 0.1, 100.0)?;
+        check_window("loops.min_window", &self.min_window)?;
+        check_window("loops.max_window", &self.max_window)?;
+        check_range(
+            "loops.min_mean_intensity",
+            self.min_mean_intensity,
+            0.0,
+            1.0,
+        )?;
+        check_range(
+            "loops.min_inside_fraction",
+            self.min_inside_fraction,
+            0.0,
+            1.0,
+        )?;
+        check_range(
+            "loops.max_second_peak_ratio",
+            self.max_second_peak_ratio,
+            0.0,
+            1.0,
+        )?;
+        check_window("loops.max_sigma", &self.max_sigma)?;
+        check_window("loops.min_sigma", &self.min_sigma)?;
+        check_range(
+            "loops.window_edge_fraction",
+            self.window_edge_fraction,
+            0.0,
+            0.5,
+        )?;
+        check_window("loops.reverse_window", &self.reverse_window)?;
+        check_range(
+            "loops.reverse_max_translation_m",
+            self.reverse_max_translation_m,
+            0.0,
+            100.0,
+        )?;
+        check_range(
+            "loops.reverse_max_rotation_rad",
+            self.reverse_max_rotation_rad,
+            0.0,
+            std::f64::consts::PI,
+        )?;
+        check_range(
+            "loops.consistency_max_chi2",
+            self.consistency_max_chi2,
+            0.0,
+            1e12,
+        )?;
+        check_range("loops.drift_fraction", self.drift_fraction, 0.0, 10.0)?;
+        check_range(
+            "loops.drift_heading_sigma_rad",
+            self.drift_heading_sigma_rad,
+            0.0,
+            std::f64::consts::PI,
+        )?;
+        Ok(())
+    }
+}

@@ -1,0 +1,238 @@
+//! The output folder of a run ([`write_outputs`]).
+//!
+//! | file | content |
+//! |---|---|
+//! | `config.toml` | the effective configuration (`echofield run --config` reads it back) |
+//! | `trajectory_tum.txt` | optimised node poses, TUM `stamp x y z qx qy qz qw` |
+//! | `dead_reckoning_tum.txt` | dead reckoning at the node stamps, TUM |
+//! | `ground_truth_tum.txt` | ground truth at the node stamps (its own frame), TUM; only with ground truth |
+//! | `poses.csv` | optimised node poses, `stamp_s,x_m,y_m,theta_rad` |
+//! | `graph.g2o` | the optimised pose graph (`VERTEX_SE2`, `EDGE_SE2`, `FIX`) |
+//! | `loops.csv` | every loop-closure candidate ([`loops_csv`]) |
+//! | `trajectory.png` | dead reckoning, optimised and (aligned) ground truth |
+//! | `loops.png` | loop candidates over the trajectory, coloured by outcome |
+//! | `mosaic.png`, `mosaic.pgw` | acoustic mosaic at the optimised poses and its world file ([`mosaic`]) |
+//! | `mission.mcap` | poses, scans, images and loops for Foxglove ([`foxglove`]) |
+//! | `report.json` | the run's [`Report`](crate::slam::Report), written last |
+//!
+//! The TUM files share their stamps (the nodes' reference times), so
+//! `evo_ape tum ground_truth_tum.txt trajectory_tum.txt -a` and
+//! `echofield eval` associate every pose exactly.
+//!
+//! Every file is written atomically (a temporary file in `dir`, renamed
+//! over the destination when complete), in the order above: if writing
+//! stops on an error, the files before it are complete and new, the ones
+//! after it are untouched, and no temporary file is left. `report.json`
+//! comes last, so its presence with a fresh `time_s` marks a complete
+//! folder.
+
+pub mod demo;
+pub mod foxglove;
+pub mod loops_csv;
+pub mod mosaic;
+pub mod precision_recall;
+
+use crate::eval::align_se2;
+use crate::output::write_atomic;
+use crate::plots::loops::{LoopClass, LoopSegment, loops_png};
+use crate::plots::trajectory::{DEAD_RECKONING, GROUND_TRUTH, OPTIMISED, Track, trajectory_png};
+use crate::slam::{NodeRecord, SlamOutput};
+use anyhow::{Context, Result};
+use echofield_frontend::sensors::Mission;
+use echofield_graph::Se2;
+use echofield_graph::io::{TrajectoryPose, write_csv, write_g2o, write_tum};
+use loops_csv::{LoopRow, write_loops_csv};
+use mosaic::{MosaicConfig, build_mosaic, mosaic_png, world_file};
+use nalgebra::Vector2;
+use std::path::Path;
+use std::time::Instant;
+
+/// Size of `trajectory.png` and `loops.png`, pixels.
+pub const PLOT_SIZE_PX: (u32, u32) = (1100, 1000);
+
+/// Writes every output of `output` into `dir` (created if needed). See the
+/// module doc for the files, their order and the atomicity guarantees.
+/// `mission` is the run's input (its sensor mounting goes into
+/// `mission.mcap`).
+pub fn write_outputs(dir: &Path, output: &SlamOutput, mission: &Mission) -> Result<()> {
+    let start = Instant::now();
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let loops: Vec<LoopRow> = output.loops.iter().map(LoopRow::from_record).collect();
+    let world_from_gt = world_from_ground_truth(output);
+    timed("tables", || write_tables(dir, output, &loops))?;
+    timed("plots", || write_plots(dir, output, &loops, world_from_gt))?;
+    timed("mosaic", || write_mosaic(dir, output))?;
+    timed("mcap", || {
+        let path = dir.join("mission.mcap");
+        foxglove::write_results_mcap(&path, output, &mission.mounting, &loops, world_from_gt)
+            .with_context(|| format!("while writing {}", path.display()))
+    })?;
+    let mut report = output.report.clone();
+    report.timings.writing_s = Some(start.elapsed().as_secs_f64());
+    write_atomic(&dir.join("report.json"), |w| {
+        serde_json::to_writer_pretty(&mut *w, &report)?;
+        Ok(w.write_all(b"\n")?)
+    })
+}
+
+/// Runs one group of outputs and logs its time.
+fn timed(what: &str, f: impl FnOnce() -> Result<()>) -> Result<()> {
+    let t = Instant::now();
+    f()?;
+    tracing::debug!(
+        "outputs: {what} in {:.1} ms",
+        t.elapsed().as_secs_f64() * 1e3
+    );
+    Ok(())
+}
+
+/// The node poses as trajectory rows, one pose per node stamp.
+fn node_trajectory(output: &SlamOutput, pose: impl Fn(&NodeRecord) -> Se2) -> Vec<TrajectoryPose> {
+    output
+        .nodes
+        .iter()
+        .map(|n| TrajectoryPose {
+            stamp_s: n.stamp_s,
+            pose: pose(n),
+        })
+        .collect()
+}
+
+/// `config.toml`, the TUM files, `poses.csv`, `graph.g2o`, `loops.csv`.
+fn write_tables(dir: &Path, output: &SlamOutput, loops: &[LoopRow]) -> Result<()> {
+    write_atomic(&dir.join("config.toml"), |w| {
+        Ok(w.write_all(output.config.to_toml_string().as_bytes())?)
+    })?;
+    let optimised = node_trajectory(output, |n| n.optimised);
+    let dead_reckoning = node_trajectory(output, |n| n.dead_reckoning);
+    write_atomic(&dir.join("trajectory_tum.txt"), |w| {
+        Ok(write_tum(&optimised, w)?)
+    })?;
+    write_atomic(&dir.join("dead_reckoning_tum.txt"), |w| {
+        Ok(write_tum(&dead_reckoning, w)?)
+    })?;
+    if let Some(gt) = &output.ground_truth {
+        let poses: Vec<TrajectoryPose> = gt
+            .iter()
+            .map(|&(stamp_s, pose)| TrajectoryPose { stamp_s, pose })
+            .collect();
+        write_atomic(&dir.join("ground_truth_tum.txt"), |w| {
+            Ok(write_tum(&poses, w)?)
+        })?;
+    }
+    write_atomic(&dir.join("poses.csv"), |w| Ok(write_csv(&optimised, w)?))?;
+    write_atomic(&dir.join("graph.g2o"), |w| Ok(write_g2o(&output.graph, w)?))?;
+    write_atomic(&dir.join("loops.csv"), |w| Ok(write_loops_csv(loops, w)?))
+}
+
+/// `trajectory.png` and `loops.png`.
+fn write_plots(
+    dir: &Path,
+    output: &SlamOutput,
+    loops: &[LoopRow],
+    world_from_gt: Option<Se2>,
+) -> Result<()> {
+    let png = trajectory_png(
+        &trajectory_tracks(output, world_from_gt),
+        &format!("{}: trajectories", output.mission_name),
+        PLOT_SIZE_PX,
+    )?;
+    write_atomic(&dir.join("trajectory.png"), |w| Ok(w.write_all(&png)?))?;
+    let optimised: Vec<Se2> = output.nodes.iter().map(|n| n.optimised).collect();
+    let png = loops_png(
+        &positions(optimised.iter().copied()),
+        &loop_segments(loops, &optimised),
+        &format!("{}: loop closures", output.mission_name),
+        PLOT_SIZE_PX,
+    )?;
+    write_atomic(&dir.join("loops.png"), |w| Ok(w.write_all(&png)?))
+}
+
+/// `mosaic.png` and its world file `mosaic.pgw`.
+fn write_mosaic(dir: &Path, output: &SlamOutput) -> Result<()> {
+    let grid = mosaic_grid(output)?;
+    let track = positions(output.nodes.iter().map(|n| n.optimised));
+    let png = mosaic_png(&grid, &track)?;
+    write_atomic(&dir.join("mosaic.png"), |w| Ok(w.write_all(&png)?))?;
+    write_atomic(&dir.join("mosaic.pgw"), |w| {
+        Ok(w.write_all(world_file(&grid).as_bytes())?)
+    })
+}
+
+/// `world_from_ground_truth`: the inverse of the SE(2) alignment of the
+/// optimised nodes onto their ground truth (the alignment of the ATE).
+pub fn world_from_ground_truth(output: &SlamOutput) -> Option<Se2> {
+    let (estimate, reference): (Vec<Vector2<f64>>, Vec<Vector2<f64>>) = output
+        .nodes
+        .iter()
+        .filter_map(|n| {
+            n.ground_truth
+                .map(|gt| (n.optimised.translation(), gt.translation()))
+        })
+        .unzip();
+    (!estimate.is_empty()).then(|| align_se2(&estimate, &reference).inverse())
+}
+
+fn positions(poses: impl Iterator<Item = Se2>) -> Vec<(f64, f64)> {
+    poses.map(|p| (p.x(), p.y())).collect()
+}
+
+/// Ground truth (aligned into the world frame) under dead reckoning under
+/// the optimised poses, all at the node stamps (as in the TUM files).
+fn trajectory_tracks(output: &SlamOutput, world_from_gt: Option<Se2>) -> Vec<Track> {
+    let mut tracks = Vec::with_capacity(3);
+    if let (Some(gt), Some(t)) = (&output.ground_truth, world_from_gt) {
+        tracks.push(Track {
+            label: "ground truth (SE(2)-aligned)".into(),
+            points: positions(gt.iter().map(|(_, p)| t.compose(p))),
+            colour: GROUND_TRUTH,
+            width_px: 3,
+        });
+    }
+    tracks.push(Track {
+        label: "dead reckoning".into(),
+        points: positions(output.nodes.iter().map(|n| n.dead_reckoning)),
+        colour: DEAD_RECKONING,
+        width_px: 2,
+    });
+    tracks.push(Track {
+        label: "optimised (SLAM nodes)".into(),
+        points: positions(output.nodes.iter().map(|n| n.optimised)),
+        colour: OPTIMISED,
+        width_px: 2,
+    });
+    tracks
+}
+
+/// Every candidate as a segment between its nodes' optimised positions.
+fn loop_segments(loops: &[LoopRow], optimised: &[Se2]) -> Vec<LoopSegment> {
+    loops
+        .iter()
+        .filter_map(|l| {
+            let a = optimised.get(usize::try_from(l.from).ok()?)?;
+            let b = optimised.get(usize::try_from(l.to).ok()?)?;
+            let class = if l.accepted {
+                LoopClass::Accepted(l.gt_correct)
+            } else {
+                LoopClass::Rejected(l.rejected_by.clone().unwrap_or_else(|| "unknown".into()))
+            };
+            Some(LoopSegment {
+                from: (a.x(), a.y()),
+                to: (b.x(), b.y()),
+                class,
+            })
+        })
+        .collect()
+}
+
+/// The mosaic's world grid: every node's `I_k` at its optimised pose.
+pub fn mosaic_grid(output: &SlamOutput) -> Result<echofield_frontend::image::Grid> {
+    let images: Vec<(&echofield_frontend::image::Grid, Se2)> = output
+        .nodes
+        .iter()
+        .zip(&output.images)
+        .filter(|(_, image)| !image.is_empty())
+        .map(|(node, image)| (image.grid(), node.optimised))
+        .collect();
+    build_mosaic(&images, &MosaicConfig::default())
+}

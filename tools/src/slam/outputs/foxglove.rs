@@ -1,0 +1,192 @@
+//! `mission.mcap`: the run's results for MCAP viewers (Foxglove), written
+//! with the datasets crate's streaming [`MissionWriter`] (atomic: a
+//! temporary file renamed into place when complete).
+//!
+//! Everything is in frame `world` (the run's dead-reckoning world frame;
+//! ground truth is moved into it by the SE(2) alignment of the optimised
+//! nodes onto it). Topics and Foxglove schemas:
+//!
+//! | topic | schema | when | content |
+//! |---|---|---|---|
+//! | `/slam/trajectory` | `foxglove.PosesInFrame` | first node | optimised node poses |
+//! | `/dead_reckoning/trajectory` | `foxglove.PosesInFrame` | first node | dead reckoning at the node stamps |
+//! | `/ground_truth/trajectory` | `foxglove.PosesInFrame` | first node | ground truth at the node stamps (aligned) |
+//! | `/slam/loops/accepted` | `foxglove.PointCloud` | first node | accepted loops as points every 0.25 m along each segment; `intensity` 1 = true, 0 = false, 0.5 = no ground truth |
+//! | `/slam/loops/rejected` | `foxglove.PointCloud` | first node | rejected candidates, same layout |
+//! | `/tf` | `foxglove.FrameTransform` | each node | `world` → `vehicle`, the optimised pose |
+//! | `/slam/pose` | `foxglove.PoseInFrame` | each node | the optimised pose |
+//! | `/slam/scan` | `foxglove.PointCloud` | each node | `S_k` placed at the optimised pose; `intensity` 0-255 |
+//! | `/slam/acoustic_image` | `foxglove.CompressedImage` | each node | `I_k` as a grey PNG in the vehicle frame (x right, y up, one pixel per 2 x 2 cells, max-pooled) |
+//!
+//! Whole-run messages sit at the first node's stamp so that they stay on
+//! screen over the whole playback (a viewer shows the latest message of a
+//! topic).
+
+use super::loops_csv::LoopRow;
+use crate::plots::encode_png;
+use crate::slam::SlamOutput;
+use anyhow::{Context, Result};
+use echofield_datasets::mcap::MissionWriter;
+use echofield_datasets::mcap::foxglove::ScanPoint;
+use echofield_frontend::image::AcousticImage;
+use echofield_frontend::sensors::SensorMounting;
+use echofield_graph::Se2;
+use image::ExtendedColorType;
+use std::path::Path;
+
+pub const FRAME_WORLD: &str = "world";
+pub const FRAME_VEHICLE: &str = "vehicle";
+/// Spacing of the points that draw a loop segment, metres.
+const LOOP_POINT_SPACING_M: f64 = 0.25;
+
+/// Writes `path` from a run's output. `world_from_ground_truth` maps the
+/// ground-truth frame into the run's world frame.
+pub fn write_results_mcap(
+    path: &Path,
+    output: &SlamOutput,
+    mounting: &SensorMounting,
+    loops: &[LoopRow],
+    world_from_ground_truth: Option<Se2>,
+) -> Result<()> {
+    let Some(first) = output.nodes.first() else {
+        anyhow::bail!("the run has no nodes");
+    };
+    let t0 = first.stamp_s;
+    let name = format!("{} (echofield results)", output.mission_name);
+    let mut w = MissionWriter::create(path, &name, mounting)?;
+
+    let optimised: Vec<Se2> = output.nodes.iter().map(|n| n.optimised).collect();
+    let dead_reckoning: Vec<Se2> = output.nodes.iter().map(|n| n.dead_reckoning).collect();
+    w.write_poses_in_frame("/slam/trajectory", t0, FRAME_WORLD, &optimised)?;
+    w.write_poses_in_frame(
+        "/dead_reckoning/trajectory",
+        t0,
+        FRAME_WORLD,
+        &dead_reckoning,
+    )?;
+    if let (Some(gt), Some(world_from_gt)) = (&output.ground_truth, world_from_ground_truth) {
+        let poses: Vec<Se2> = gt.iter().map(|(_, p)| world_from_gt.compose(p)).collect();
+        w.write_poses_in_frame("/ground_truth/trajectory", t0, FRAME_WORLD, &poses)?;
+    }
+    for (topic, accepted) in [
+        ("/slam/loops/accepted", true),
+        ("/slam/loops/rejected", false),
+    ] {
+        let points = loop_points(loops, accepted, &optimised);
+        w.write_point_cloud(topic, t0, FRAME_WORLD, &Se2::identity(), &points)?;
+    }
+
+    let mut png_pixels = Vec::new();
+    for (k, node) in output.nodes.iter().enumerate() {
+        let t = node.stamp_s;
+        w.write_frame_transform("/tf", t, FRAME_WORLD, FRAME_VEHICLE, &node.optimised)?;
+        w.write_pose_in_frame("/slam/pose", t, FRAME_WORLD, &node.optimised)?;
+        if let Some(scan) = output.scans.get(k).filter(|s| !s.is_empty()) {
+            let points: Vec<ScanPoint> = scan
+                .points
+                .iter()
+                .zip(&scan.intensities)
+                .map(|(p, &i)| ScanPoint {
+                    x_m: p.x,
+                    y_m: p.y,
+                    intensity: i,
+                })
+                .collect();
+            w.write_point_cloud("/slam/scan", t, FRAME_WORLD, &node.optimised, &points)?;
+        }
+        if let Some(image) = output.images.get(k).filter(|i| !i.is_empty()) {
+            let png = image_png(image, &mut png_pixels)
+                .with_context(|| format!("acoustic image of node {k}"))?;
+            w.write_compressed_image("/slam/acoustic_image", t, FRAME_VEHICLE, "png", &png)?;
+        }
+    }
+    w.finish()?;
+    Ok(())
+}
+
+/// Points along the segments between the optimised positions of the loop
+/// candidates' nodes.
+fn loop_points(loops: &[LoopRow], accepted: bool, optimised: &[Se2]) -> Vec<ScanPoint> {
+    let mut points = Vec::new();
+    for l in loops.iter().filter(|l| l.accepted == accepted) {
+        let (Some(a), Some(b)) = (optimised.get(l.from as usize), optimised.get(l.to as usize))
+        else {
+            continue;
+        };
+        let intensity = match l.gt_correct {
+            Some(true) => 1.0,
+            Some(false) => 0.0,
+            None => 0.5,
+        };
+        let length = (b.translation() - a.translation()).norm();
+        let steps = ((length / LOOP_POINT_SPACING_M).ceil() as usize).max(1);
+        for s in 0..=steps {
+            let f = s as f64 / steps as f64;
+            points.push(ScanPoint {
+                x_m: a.x() + f * (b.x() - a.x()),
+                y_m: a.y() + f * (b.y() - a.y()),
+                intensity,
+            });
+        }
+    }
+    points
+}
+
+/// `I_k` as an 8-bit grey PNG, x to the right and y up (row 0 is the
+/// largest y), max-pooled over 2 x 2 cells: a quarter of the pixels to
+/// encode and store, and no echo lost. `pixels` is scratch space reused
+/// between calls.
+pub fn image_png(image: &AcousticImage, pixels: &mut Vec<u8>) -> Result<Vec<u8>> {
+    let grid = image.grid();
+    let (w, h) = (grid.width(), grid.height());
+    let (pw, ph) = (w.div_ceil(2), h.div_ceil(2));
+    pixels.clear();
+    pixels.resize(pw * ph, 0);
+    let values = grid.values();
+    let level = |v: f32| (v.clamp(0.0, 1.0) * 255.0) as u8;
+    for (py, pair) in values.chunks(2 * w).enumerate() {
+        // Pooled row `py` from the bottom is picture row `ph - 1 - py`.
+        let dst = &mut pixels[(ph - 1 - py) * pw..(ph - py) * pw];
+        let (lower, upper) = pair.split_at(w);
+        let upper = if upper.is_empty() { lower } else { upper };
+        for ((a, b), p) in lower
+            .chunks_exact(2)
+            .zip(upper.chunks_exact(2))
+            .zip(dst.iter_mut())
+        {
+            *p = level(a[0].max(a[1]).max(b[0]).max(b[1]));
+        }
+        if w % 2 == 1 {
+            dst[pw - 1] = level(lower[w - 1].max(upper[w - 1]));
+        }
+    }
+    encode_png(pixels, pw as u32, ph as u32, ExtendedColorType::L8)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use echofield_frontend::image::Grid;
+
+    #[test]
+    fn image_png_max_pools_2x2_with_y_up() {
+        // 3 x 3 cells, row 0 at the bottom.
+        let mut grid = Grid::zeros(0.0, 0.0, 0.2, 3, 3);
+        grid.values_mut().copy_from_slice(&[
+            0.1, 0.2, 0.9, //
+            0.4, 0.3, 0.0, //
+            1.5, 0.0, 0.5, // clamped to 1
+        ]);
+        let image = AcousticImage::from_grid(grid, 0);
+        let png = image_png(&image, &mut Vec::new()).unwrap();
+        let picture = image::load_from_memory(&png).unwrap().to_luma8();
+        assert_eq!(picture.dimensions(), (2, 2));
+        let level = |v: f32| (v * 255.0) as u8;
+        // Top picture row: the pooled top cell row (row 2 alone).
+        assert_eq!(picture.get_pixel(0, 0).0[0], 255);
+        assert_eq!(picture.get_pixel(1, 0).0[0], level(0.5));
+        // Bottom picture row: rows 0-1.
+        assert_eq!(picture.get_pixel(0, 1).0[0], level(0.4));
+        assert_eq!(picture.get_pixel(1, 1).0[0], level(0.9));
+    }
+}

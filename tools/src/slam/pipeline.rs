@@ -1,0 +1,418 @@
+//! [`run_mission`]: the stages of the module doc of [`crate::slam`], in
+//! order, with their timings.
+
+use super::config::SlamConfig;
+use super::estimate::Estimate;
+use super::evaluation::evaluate;
+use super::loops::LoopCloser;
+use super::nodes::{NodeData, build_nodes};
+use super::result::{
+    DEAD_RECKONING_RATE_HZ, NodeRecord, ROBUST_WEIGHT_REJECTED, RejectReason, Report,
+    SequentialRecord, SkippedRotation, SlamOutput, SolverReport, StageTimings, TimeGap,
+};
+use super::{ProgressSink, SlamError, check_sensors, sequential};
+use echofield_backend::edge_error;
+use echofield_frontend::dead_reckoning::{self, Navigation};
+use echofield_frontend::rotation::assemble_rotations;
+use echofield_frontend::sensors::Mission;
+use echofield_graph::{EdgeKind, PoseGraph, Se2};
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+/// A gap between consecutive nodes longer than this many median node
+/// periods is reported.
+const NODE_GAP_PERIODS: f64 = 3.0;
+
+/// Runs the whole pipeline on `mission` (see [`crate::slam`]).
+///
+/// Errors: an invalid config; a mission without beams, valid DVL samples
+/// or heading; bad records (non-finite values, time going backwards); no
+/// rotation the navigation covers; a failed final solve.
+pub fn run_mission(
+    mission: &Mission,
+    config: &SlamConfig,
+    progress: &dyn ProgressSink,
+) -> Result<SlamOutput, SlamError> {
+    let result = run(mission, config, progress);
+    progress.finish();
+    result
+}
+
+fn run(
+    mission: &Mission,
+    config: &SlamConfig,
+    progress: &dyn ProgressSink,
+) -> Result<SlamOutput, SlamError> {
+    let start = Instant::now();
+    config.validate()?;
+    check_sensors(mission)?;
+    let mut timings = StageTimings::default();
+    let mut warnings = Vec::new();
+
+    progress.stage("dead reckoning");
+    let t = Instant::now();
+    let navigation = dead_reckoning::run(mission, &config.dead_reckoning)
+        .map_err(|e| SlamError::frontend("dead reckoning", e))?;
+    timings.dead_reckoning_s = t.elapsed().as_secs_f64();
+
+    progress.stage("building scans and images");
+    let t = Instant::now();
+    let rotations = assemble_rotations(&mission.beams, &config.rotation)
+        .map_err(|e| SlamError::frontend("rotation assembly", e))?;
+    let (nodes, skipped) = build_nodes(mission, &rotations, &navigation, config)?;
+    timings.scan_image_building_s = t.elapsed().as_secs_f64();
+    if nodes.is_empty() {
+        return Err(SlamError::NoNodes {
+            mission: mission.name.clone(),
+            reason: skipped
+                .first()
+                .map_or_else(|| "no rotation".to_string(), |s| s.reason.clone()),
+        });
+    }
+    report_skipped(&skipped, &mut warnings);
+
+    progress.stage("sequential matching");
+    let t = Instant::now();
+    let sequential = sequential::match_all(&nodes, &navigation, config)?;
+    let mut matching_s = t.elapsed().as_secs_f64();
+
+    progress.start_nodes(nodes.len());
+    let t = Instant::now();
+    let mut estimate = Estimate::new(&config.backend)?;
+    let mut closer = LoopCloser::new(&config.loops, &config.matcher);
+    let mut incremental_error = None;
+    for k in 0..nodes.len() {
+        add_node(
+            k,
+            &nodes,
+            &sequential,
+            &navigation,
+            config,
+            &mut estimate,
+            &mut closer,
+        )?;
+        let mut optimise = |estimate: &mut Estimate| -> Result<(), SlamError> {
+            if config.backend.incremental {
+                // A failed incremental solve leaves the estimate as it was;
+                // the final batch solve decides.
+                if let Err(e) = estimate.optimise_incremental() {
+                    incremental_error.get_or_insert(e.to_string());
+                }
+            }
+            Ok(())
+        };
+        closer.close_loops(k, &nodes, &mut estimate, &mut optimise)?;
+        progress.node_done(k + 1, closer.accepted.ids.len());
+    }
+    closer.finish();
+    if let Some(e) = incremental_error {
+        warnings.push(format!(
+            "an incremental solve failed ({e}); the final batch solve was run anyway"
+        ));
+    }
+    if closer.inexact_cliques > 0 {
+        warnings.push(format!(
+            "{} consistency searches stopped at the call limit (greedy result used)",
+            closer.inexact_cliques
+        ));
+    }
+    let loop_stage_s = t.elapsed().as_secs_f64();
+
+    progress.stage("optimisation");
+    let t = Instant::now();
+    let (graph, summary) = final_solve(config, &mut estimate, &mut closer)?;
+    timings.optimisation_s = t.elapsed().as_secs_f64() + estimate.incremental_time_s;
+    matching_s += loop_stage_s - estimate.incremental_time_s - closer.validation_time_s;
+    timings.matching_s = matching_s;
+    timings.loop_validation_s = closer.validation_time_s;
+
+    let mut records: Vec<NodeRecord> = nodes
+        .iter()
+        .zip(graph.poses())
+        .enumerate()
+        .map(|(i, (node, optimised))| NodeRecord {
+            id: i as u64,
+            rotation_index: node.rotation_index,
+            stamp_s: node.stamp_s,
+            beams: node.beams.clone(),
+            dead_reckoning: node.dead_reckoning,
+            optimised,
+            ground_truth: None,
+            scan_points: node.scan.len(),
+            in_dvl_gap: node.in_dvl_gap,
+        })
+        .collect();
+    let time_gaps = time_gaps(&navigation, &nodes, &mut warnings);
+    let mut loops = std::mem::take(&mut closer.records);
+    let mut report = Report {
+        mission: mission.name.clone(),
+        echofield_version: env!("CARGO_PKG_VERSION").to_string(),
+        rotations: rotations.len(),
+        nodes: nodes.len(),
+        skipped_rotations: skipped,
+        nodes_with_scan: nodes.iter().filter(|n| n.has_scan()).count(),
+        sequential_matches: sequential.len(),
+        sequential_accepted: sequential.iter().filter(|s| s.accepted).count(),
+        loop_candidates: loops.len(),
+        loop_matches: loops
+            .iter()
+            .filter(|l| l.rejected_by != Some(RejectReason::Deferred))
+            .count(),
+        loop_wide_searches: closer.wide_searches,
+        matches_run: closer.matches
+            + sequential
+                .iter()
+                .map(|s| {
+                    usize::from(s.matched.is_some() || s.no_match.is_some())
+                        + usize::from(s.reverse.is_some())
+                })
+                .sum::<usize>(),
+        loops_accepted: loops.iter().filter(|l| l.accepted).count(),
+        loop_rejections: rejections(&loops),
+        edges: edge_counts(&graph),
+        time_s: 0.0,
+        timings,
+        solver: SolverReport {
+            summary,
+            incremental_solves: estimate.incremental_solves,
+            incremental_symbolic_reused: estimate.incremental_symbolic_reused,
+            incremental_time_s: estimate.incremental_time_s,
+        },
+        time_gaps,
+        warnings,
+        ate_rmse_m: None,
+        ate_rmse_dead_reckoning_m: None,
+        ate: None,
+        ate_dead_reckoning: None,
+        distance_travelled_m: None,
+        rpe: None,
+        rpe_dead_reckoning: None,
+        loop_precision: None,
+        loop_recall: None,
+        loop_recall_pairs: None,
+        loop_evaluation: None,
+        definitions: BTreeMap::new(),
+    };
+
+    progress.stage("evaluation");
+    let t = Instant::now();
+    evaluate(
+        &mission.ground_truth,
+        &nodes,
+        &mut records,
+        &mut loops,
+        config,
+        &mut report,
+    );
+    report.timings.evaluation_s = t.elapsed().as_secs_f64();
+    report.time_s = start.elapsed().as_secs_f64();
+
+    let ground_truth = (!mission.ground_truth.is_empty()).then(|| {
+        records
+            .iter()
+            .filter_map(|n| n.ground_truth.map(|g| (n.stamp_s, g)))
+            .collect()
+    });
+    let (scans, images) = nodes.into_iter().map(|n| (n.scan, n.image)).unzip();
+    Ok(SlamOutput {
+        mission_name: mission.name.clone(),
+        config: config.clone(),
+        nodes: records,
+        graph,
+        dead_reckoning: dense_dead_reckoning(&navigation),
+        ground_truth,
+        loops,
+        sequential,
+        report,
+        scans,
+        images,
+        image_config: config.image.clone(),
+    })
+}
+
+/// Adds node `k` with its odometry and (accepted) sequential edges; its
+/// initial pose follows the previous node's current estimate.
+fn add_node(
+    k: usize,
+    nodes: &[NodeData],
+    sequential: &[SequentialRecord],
+    navigation: &Navigation,
+    config: &SlamConfig,
+    estimate: &mut Estimate,
+    closer: &mut LoopCloser,
+) -> Result<(), SlamError> {
+    let node = &nodes[k];
+    let heading_var = navigation
+        .covariance_at(node.stamp_s)
+        .map_err(|e| SlamError::frontend("dead-reckoning covariance", e))?[(2, 2)];
+    if k == 0 {
+        estimate.add_node(node.stamp_s, node.dead_reckoning);
+        closer.chain.push(
+            node.dead_reckoning,
+            heading_var,
+            &nalgebra::Matrix3::zeros(),
+        );
+        return Ok(());
+    }
+    let (odometry, odometry_cov) = sequential::odometry(navigation, &nodes[k - 1], node)?;
+    let matched = sequential
+        .get(k - 1)
+        .filter(|s| s.accepted)
+        .and_then(|s| Some((s.measurement?, sequential::edge_covariance(s, config)?, s)));
+    // The odometry, not the match: its heading is tied to the compass,
+    // while chained matches let the heading random-walk.
+    let pose = estimate.poses()[k - 1].compose(&odometry);
+    estimate.add_node(node.stamp_s, pose);
+    let sigma = config.backend.heading_prior_sigma_rad;
+    if sigma > 0.0 {
+        estimate.add_heading_prior(k, node.dead_reckoning, sigma)?;
+    }
+    estimate.add_chain_edge(EdgeKind::Odometry, k - 1, k, odometry, &odometry_cov, None)?;
+    if let Some((z, cov, record)) = matched {
+        let metadata = record.quality.as_ref().map(|q| {
+            serde_json::json!({
+                "mean_intensity": q.mean_intensity,
+                "inside_fraction": q.inside_fraction,
+                "second_peak_ratio": q.second_peak_ratio,
+                "points": q.points,
+            })
+        });
+        estimate.add_chain_edge(EdgeKind::Sequential, k - 1, k, z, &cov, metadata)?;
+    }
+    closer
+        .chain
+        .push(node.dead_reckoning, heading_var, &odometry_cov);
+    Ok(())
+}
+
+/// The final batch solve; loops the robust kernel nearly ignores are
+/// removed (`robust_kernel`) and the graph solved again.
+fn final_solve(
+    config: &SlamConfig,
+    estimate: &mut Estimate,
+    closer: &mut LoopCloser,
+) -> Result<(PoseGraph, echofield_backend::SolveSummary), SlamError> {
+    let kernel = config.backend.solver.robust.kernel(EdgeKind::Loop);
+    let (mut graph, mut summary) = estimate.optimise_batch(&config.backend)?;
+    for _ in 0..2 {
+        let poses = graph.poses();
+        let mut outliers = Vec::new();
+        for measurement in closer.accepted_measurements() {
+            let id = measurement.id;
+            let edge = graph.edges().find(|e| {
+                e.kind == EdgeKind::Loop
+                    && e.from == measurement.from as u64
+                    && e.to == measurement.to as u64
+            });
+            let Some(edge) = edge else { continue };
+            let e = edge_error(edge, &poses[measurement.from], &poses[measurement.to]);
+            let (_, weight) = kernel.evaluate(e.dot(&(edge.information * e)));
+            closer.records[id].robust_weight = Some(weight);
+            if weight < ROBUST_WEIGHT_REJECTED {
+                outliers.push(id);
+            }
+        }
+        if outliers.is_empty() {
+            break;
+        }
+        closer.reject(&outliers, RejectReason::RobustKernel, estimate);
+        (graph, summary) = estimate.optimise_batch(&config.backend)?;
+    }
+    Ok((graph, summary))
+}
+
+fn report_skipped(skipped: &[SkippedRotation], warnings: &mut Vec<String>) {
+    if let (Some(first), Some(last)) = (skipped.first(), skipped.last()) {
+        warnings.push(format!(
+            "{} rotations were skipped (rotations {}-{}): {}",
+            skipped.len(),
+            first.rotation_index,
+            last.rotation_index,
+            first.reason
+        ));
+    }
+}
+
+/// DVL gaps and long intervals between nodes, bridged by dead reckoning.
+fn time_gaps(
+    navigation: &Navigation,
+    nodes: &[NodeData],
+    warnings: &mut Vec<String>,
+) -> Vec<TimeGap> {
+    let mut gaps: Vec<TimeGap> = navigation
+        .dvl_gaps()
+        .iter()
+        .map(|g| TimeGap {
+            kind: "dvl".into(),
+            start_s: g.start_s,
+            end_s: g.end_s,
+        })
+        .collect();
+    let mut periods: Vec<f64> = nodes
+        .windows(2)
+        .map(|w| w[1].stamp_s - w[0].stamp_s)
+        .collect();
+    if !periods.is_empty() {
+        let mid = periods.len() / 2;
+        let median = *periods.select_nth_unstable_by(mid, f64::total_cmp).1;
+        gaps.extend(
+            nodes
+                .windows(2)
+                .filter(|w| w[1].stamp_s - w[0].stamp_s > NODE_GAP_PERIODS * median)
+                .map(|w| TimeGap {
+                    kind: "sonar".into(),
+                    start_s: w[0].stamp_s,
+                    end_s: w[1].stamp_s,
+                }),
+        );
+    }
+    for gap in &gaps {
+        warnings.push(format!(
+            "no {} data for {:.1} s from t = {:.3} s: bridged by dead reckoning",
+            gap.kind,
+            gap.end_s - gap.start_s,
+            gap.start_s
+        ));
+    }
+    gaps
+}
+
+fn rejections(loops: &[super::result::LoopRecord]) -> BTreeMap<RejectReason, usize> {
+    let mut out = BTreeMap::new();
+    for reason in loops.iter().filter_map(|l| l.rejected_by) {
+        *out.entry(reason).or_insert(0) += 1;
+    }
+    out
+}
+
+fn edge_counts(graph: &PoseGraph) -> BTreeMap<String, usize> {
+    let mut out = BTreeMap::new();
+    for edge in graph.edges() {
+        let name = serde_json::to_value(edge.kind)
+            .ok()
+            .and_then(|v| v.as_str().map(str::to_string))
+            .unwrap_or_default();
+        *out.entry(name).or_insert(0) += 1;
+    }
+    out
+}
+
+/// The dead-reckoning pose every `1 / DEAD_RECKONING_RATE_HZ` s and at the
+/// last step.
+fn dense_dead_reckoning(navigation: &Navigation) -> Vec<(f64, Se2)> {
+    let (start_s, end_s) = (navigation.start_s(), navigation.end_s());
+    let step_s = 1.0 / DEAD_RECKONING_RATE_HZ;
+    let count = ((end_s - start_s) / step_s).floor() as usize;
+    let mut out: Vec<(f64, Se2)> = (0..=count)
+        .filter_map(|i| {
+            let t = start_s + i as f64 * step_s;
+            navigation.pose_at(t).ok().map(|p| (t, p))
+        })
+        .collect();
+    if out.last().is_none_or(|(t, _)| *t < end_s)
+        && let Ok(p) = navigation.pose_at(end_s)
+    {
+        out.push((end_s, p));
+    }
+    out
+}

@@ -1,0 +1,356 @@
+//! What a SLAM run returns: the optimised graph, one record per node and
+//! per loop-closure candidate, the dense dead-reckoning trajectory, the
+//! scans and images of the nodes, and the [`Report`] (`report.json`).
+//!
+//! Frames: every pose named `world_from_...` or listed as a node pose is in
+//! the dead-reckoning world frame (origin where the EKF started, axes of the
+//! heading reference). The optimised graph keeps node 0 fixed at its
+//! dead-reckoning pose, so both trajectories start together. Ground truth
+//! is in its own frame (the simulator's world, the DGPS local plane); the
+//! evaluation aligns the estimate to it (SE(2), see [`crate::eval`]).
+
+use super::config::SlamConfig;
+use crate::eval::{AteStats, RpeStats};
+use echofield_backend::SolveSummary;
+use echofield_frontend::image::{AcousticImage, ImageConfig};
+use echofield_frontend::matcher::{MatchQuality, SearchWindow};
+use echofield_frontend::scan::Scan;
+use echofield_graph::{NodeId, PoseGraph, Se2};
+use nalgebra::Matrix3;
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::ops::Range;
+
+/// Everything a run produced; the input of `slam::outputs::write_outputs`.
+#[derive(Clone, Debug)]
+pub struct SlamOutput {
+    pub mission_name: String,
+    /// The effective configuration (written as `config.toml`).
+    pub config: SlamConfig,
+    /// One record per node, in node-id order (`nodes[i].id == i`).
+    pub nodes: Vec<NodeRecord>,
+    /// The optimised pose graph: odometry, sequential and accepted loop
+    /// edges (with their match metadata), node 0 fixed.
+    pub graph: PoseGraph,
+    /// Dense dead-reckoning trajectory `(stamp_s, world_from_vehicle)`, one
+    /// pose every `1 / DEAD_RECKONING_RATE_HZ` seconds over the span of the
+    /// navigation (plus the last step).
+    pub dead_reckoning: Vec<(f64, Se2)>,
+    /// Ground truth at the node stamps (`(stamp_s, world_from_vehicle)`,
+    /// ground-truth frame) for the nodes it covers; `None` when the mission
+    /// has none.
+    pub ground_truth: Option<Vec<(f64, Se2)>>,
+    /// Every loop-closure candidate that was considered, in the order they
+    /// were examined (accepted, rejected and deferred ones).
+    pub loops: Vec<LoopRecord>,
+    /// One record per attempted sequential match (node `k-1` to `k`).
+    pub sequential: Vec<SequentialRecord>,
+    /// The content of `report.json`.
+    pub report: Report,
+    /// `S_k` of each node (points in the node's vehicle frame), indexed
+    /// like `nodes`; empty scans for rotations that gave too few ranges.
+    pub scans: Vec<Scan>,
+    /// `I_k` of each node (in the node's vehicle frame), indexed like
+    /// `nodes`.
+    pub images: Vec<AcousticImage>,
+    /// The image configuration the images were built with.
+    pub image_config: ImageConfig,
+}
+
+/// Rate of [`SlamOutput::dead_reckoning`], Hz.
+pub const DEAD_RECKONING_RATE_HZ: f64 = 10.0;
+
+/// One node of the graph: a sonar rotation at its central (reference) time.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct NodeRecord {
+    /// Node id in the graph (0, 1, 2, ...).
+    pub id: NodeId,
+    /// Index of the rotation in the mission's rotation list.
+    pub rotation_index: usize,
+    /// The rotation's reference (central) time, s.
+    pub stamp_s: f64,
+    /// The rotation's beams: indices into `mission.beams`.
+    pub beams: Range<usize>,
+    /// `world_from_vehicle` from dead reckoning at `stamp_s`.
+    pub dead_reckoning: Se2,
+    /// `world_from_vehicle` after the final optimisation.
+    pub optimised: Se2,
+    /// Ground truth at `stamp_s` (ground-truth frame), when covered.
+    pub ground_truth: Option<Se2>,
+    /// Points of `S_k` (0 when the rotation gave too few ranges).
+    pub scan_points: usize,
+    /// The rotation spans a gap in the DVL data (not matched).
+    pub in_dvl_gap: bool,
+}
+
+/// The outcome of one sequential match `S_k` vs `I_{k-1}`.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct SequentialRecord {
+    pub from: NodeId,
+    pub to: NodeId,
+    /// Dead-reckoning `from_from_to` (the prior) and its covariance.
+    pub prior: Se2,
+    pub prior_covariance: Matrix3<f64>,
+    pub window: SearchWindow,
+    /// The matched `from_from_to`, when the matcher found one.
+    pub matched: Option<Se2>,
+    /// The relative pose of the sequential edge: the mean of `matched` and
+    /// the inverse of the reverse match (`S_from` vs `I_to`) when they
+    /// agree, else `matched`.
+    pub measurement: Option<Se2>,
+    pub quality: Option<MatchQuality>,
+    pub covariance: Option<Matrix3<f64>>,
+    /// The symmetric match, when `sequential.symmetric` is set.
+    pub reverse: Option<ReverseCheck>,
+    /// Squared Mahalanobis distance between match and prior.
+    pub prior_chi2: Option<f64>,
+    /// Whether a sequential edge was added.
+    pub accepted: bool,
+    /// Why not, when not.
+    pub rejected_by: Option<RejectReason>,
+    /// The matcher's reason for "no match", when it gave one.
+    pub no_match: Option<String>,
+}
+
+/// Why a loop candidate (or a sequential match) was not used.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RejectReason {
+    /// The search window stayed too large (the relative uncertainty of the
+    /// two nodes never became small enough); never matched.
+    Deferred,
+    /// One of the scans has too few points, or an image is empty.
+    NoData,
+    /// One of the rotations spans a gap in the DVL data: its scan and
+    /// image are distorted by the extrapolated motion, so it is not
+    /// matched.
+    DvlGap,
+    /// The matcher found no pose in the window with any overlap.
+    NoMatch,
+    /// Mean intensity, inside fraction or second-peak ratio out of bounds.
+    Quality,
+    /// The match covariance is not positive definite or too large.
+    Covariance,
+    /// The match lies at the edge of its search window.
+    WindowEdge,
+    /// The match disagrees with its prior beyond the chi-square gate
+    /// (sequential matches only).
+    Prior,
+    /// `S_j` vs `I_k` found nothing or disagrees with `S_k` vs `I_j`.
+    ReverseMismatch,
+    /// Passed every check on its own but is not in the maximum set of
+    /// mutually consistent loops.
+    Inconsistent,
+    /// Accepted into the graph, but the robust kernel of the final
+    /// optimisation weights it below `ROBUST_WEIGHT_REJECTED` (an outlier
+    /// left in the graph, nearly without effect).
+    RobustKernel,
+}
+
+/// Final weight of a loop edge under the robust kernel below which the
+/// loop counts as rejected by it.
+pub const ROBUST_WEIGHT_REJECTED: f64 = 0.1;
+
+/// The symmetric check of a loop candidate: `S_j` matched against `I_k`.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ReverseCheck {
+    /// The matched `k_from_j`, when the matcher found one.
+    pub matched: Option<Se2>,
+    pub quality: Option<MatchQuality>,
+    /// `|t|` and `|θ|` of `forward ⊕ reverse`, which is the identity when
+    /// both matches agree; `None` without a reverse match.
+    pub translation_diff_m: Option<f64>,
+    pub rotation_diff_rad: Option<f64>,
+}
+
+/// One loop-closure candidate: `S_to` matched against `I_from`
+/// (`from < to`, `from` the older node).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct LoopRecord {
+    pub from: NodeId,
+    pub to: NodeId,
+    /// Index of the newest node when the candidate was examined (equals
+    /// `to` unless it was deferred and retried later).
+    pub examined_at: NodeId,
+    /// Prior `from_from_to` from the current estimate at that time.
+    pub prior: Se2,
+    /// Covariance of the prior (relative uncertainty of the two nodes).
+    pub prior_covariance: Matrix3<f64>,
+    /// Predicted overlap (see `LoopConfig::min_predicted_overlap`).
+    pub predicted_overlap: f64,
+    /// The searched half-widths around the prior.
+    pub window: SearchWindow,
+    /// The matched `from_from_to` (`S_to` vs `I_from`).
+    pub matched: Option<Se2>,
+    /// The relative pose a loop edge would carry: the mean of `matched`
+    /// and the inverse of the reverse match when that one agrees (the two
+    /// matches' biases, which depend on the viewpoint, largely cancel),
+    /// else `matched`. Evaluated against ground truth.
+    pub measurement: Option<Se2>,
+    /// `s(x*)` of eq. (5).
+    pub score: Option<f64>,
+    pub quality: Option<MatchQuality>,
+    /// Match covariance of `(x, y, θ)` (before the `min_sigma` floor).
+    pub covariance: Option<Matrix3<f64>>,
+    /// `S_from` vs `I_to`, when the forward match passed its checks.
+    pub reverse: Option<ReverseCheck>,
+    /// Whether the loop is an edge of the final graph.
+    pub accepted: bool,
+    /// The first check that failed, for rejected candidates.
+    pub rejected_by: Option<RejectReason>,
+    /// The matcher's reason for "no match", when it gave one.
+    pub no_match: Option<String>,
+    /// Weight of the edge under the robust kernel at the final solution
+    /// (1 = fully trusted), for loops in the graph.
+    pub robust_weight: Option<f64>,
+    /// Ground-truth `from_from_to`, when the mission has ground truth.
+    pub ground_truth: Option<Se2>,
+    /// Error of `matched` against the ground truth: translation (m) and
+    /// rotation (deg) of `ground_truth⁻¹ ⊕ matched`.
+    pub gt_error_m: Option<f64>,
+    pub gt_error_deg: Option<f64>,
+    /// `matched` within the true-positive tolerances
+    /// (`evaluation.true_positive_*`).
+    pub true_positive: Option<bool>,
+    /// Ground-truth scan overlap of the pair (see `EvaluationConfig`).
+    pub gt_overlap: Option<f64>,
+}
+
+/// Wall time per stage, seconds.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct StageTimings {
+    /// Reading the mission (set by the caller that read it).
+    pub reading_s: Option<f64>,
+    pub dead_reckoning_s: f64,
+    /// Rotation assembly, motion compensation, `S_k` and `I_k`.
+    pub scan_image_building_s: f64,
+    /// Sequential and loop matches, reverse checks.
+    pub matching_s: f64,
+    /// Loop gating and mutual consistency.
+    pub loop_validation_s: f64,
+    /// Incremental and final solves.
+    pub optimisation_s: f64,
+    /// Evaluation against ground truth.
+    pub evaluation_s: f64,
+    /// Writing the outputs (set by the writer).
+    pub writing_s: Option<f64>,
+}
+
+/// The solves of a run.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct SolverReport {
+    /// The final batch solve.
+    pub summary: SolveSummary,
+    /// Incremental solves during the mission.
+    pub incremental_solves: usize,
+    /// Of which reused the symbolic factorisation of the previous one.
+    pub incremental_symbolic_reused: usize,
+    /// Their total time, s.
+    pub incremental_time_s: f64,
+}
+
+/// A rotation that did not become a node.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct SkippedRotation {
+    pub rotation_index: usize,
+    pub start_s: f64,
+    pub end_s: f64,
+    pub reason: String,
+}
+
+/// A long interval without nodes or without DVL, bridged by dead reckoning.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct TimeGap {
+    /// `dvl` (no valid DVL sample) or `sonar` (no rotation).
+    pub kind: String,
+    pub start_s: f64,
+    pub end_s: f64,
+}
+
+/// Loop-closure evaluation against ground truth.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct LoopEvaluation {
+    /// Accepted loops within the tolerances / not.
+    pub true_positives: usize,
+    pub false_positives: usize,
+    /// Revisit nodes (see `definitions`) and those recognised.
+    pub recall_nodes: usize,
+    pub recalled_nodes: usize,
+    /// Node pairs in the recall set (see `definitions`).
+    pub recall_pairs: usize,
+    /// Of which joined by an accepted true-positive loop edge.
+    pub recalled_pairs: usize,
+    /// Candidates (matched or not) whose match lies within the tolerances.
+    pub candidate_true_positives: usize,
+}
+
+/// The content of `report.json`.
+#[derive(Clone, Debug, Serialize)]
+pub struct Report {
+    pub mission: String,
+    pub echofield_version: String,
+    /// Rotations assembled from the beams.
+    pub rotations: usize,
+    /// Nodes of the graph (rotations that could be navigated).
+    pub nodes: usize,
+    pub skipped_rotations: Vec<SkippedRotation>,
+    /// Nodes with a usable scan.
+    pub nodes_with_scan: usize,
+    pub sequential_matches: usize,
+    pub sequential_accepted: usize,
+    /// Loop candidates considered (including deferred ones never matched).
+    pub loop_candidates: usize,
+    /// Candidates actually matched.
+    pub loop_matches: usize,
+    /// Of which searched over `loops.max_window` as first contacts.
+    pub loop_wide_searches: usize,
+    /// Scan matches run in all (sequential, loop, reverse).
+    pub matches_run: usize,
+    pub loops_accepted: usize,
+    /// Rejected candidates per reason.
+    pub loop_rejections: BTreeMap<RejectReason, usize>,
+    /// Edges of the final graph per kind.
+    pub edges: BTreeMap<String, usize>,
+    /// Wall time of the pipeline (reading and writing excluded), s.
+    pub time_s: f64,
+    pub timings: StageTimings,
+    pub solver: SolverReport,
+    pub time_gaps: Vec<TimeGap>,
+    /// Warnings worth a user's attention (gaps, skipped rotations, ...).
+    pub warnings: Vec<String>,
+    /// With ground truth: ATE RMSE of the optimised nodes after SE(2)
+    /// alignment, metres.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ate_rmse_m: Option<f64>,
+    /// ... of the dead-reckoning poses at the same stamps.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ate_rmse_dead_reckoning_m: Option<f64>,
+    /// Full ATE statistics (optimised, dead reckoning).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ate: Option<AteStats>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ate_dead_reckoning: Option<AteStats>,
+    /// Ground-truth path length over the span of the nodes, metres.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub distance_travelled_m: Option<f64>,
+    /// Relative pose error per distance (optimised, dead reckoning).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub rpe: Option<Vec<RpeStats>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub rpe_dead_reckoning: Option<Vec<RpeStats>>,
+    /// True positives / accepted loops (1 when none is accepted).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub loop_precision: Option<f64>,
+    /// Recognised revisit nodes / revisit nodes (see `definitions`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub loop_recall: Option<f64>,
+    /// Recall pairs joined by an accepted true-positive loop / recall
+    /// pairs (see `definitions`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub loop_recall_pairs: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub loop_evaluation: Option<LoopEvaluation>,
+    /// How each evaluation number is defined, in words.
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub definitions: BTreeMap<String, String>,
+}

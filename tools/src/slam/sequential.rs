@@ -1,0 +1,166 @@
+//! The odometry edge and the sequential match between consecutive nodes.
+//!
+//! - **Odometry** `k-1 -> k`: the dead-reckoning motion between the two
+//!   reference times and its covariance ([`Navigation::relative`], the EKF's
+//!   relative covariance, with common error cancelled), floored at
+//!   [`ODOMETRY_MIN_SIGMA`] so the information stays finite.
+//! - **Sequential match** `S_k` vs `I_{k-1}` (eq. 5-6): the prior is the
+//!   odometry motion, the window `n_sigma` standard deviations of it
+//!   (clamped to `[min_window, max_window]`). The match becomes an edge of
+//!   kind `Sequential` when its mean intensity reaches
+//!   `min_mean_intensity`, its covariance is positive definite, and it
+//!   agrees with the odometry: the squared Mahalanobis distance of
+//!   `prior⁻¹ ⊕ match` under the sum of both covariances is at most
+//!   `max_prior_chi2`. Its covariance is the score surface's plus the
+//!   `min_sigma` floor.
+//!
+//! Sequential matches depend on dead reckoning only, not on the graph, so
+//! they are all computed up front, in parallel.
+
+use super::SlamError;
+use super::config::{SlamConfig, Window};
+use super::nodes::NodeData;
+use super::result::{RejectReason, SequentialRecord};
+use super::symmetric::{Tolerance, reverse_match};
+use super::uncertainty::{information, mahalanobis2, symmetric, with_floor};
+use echofield_frontend::dead_reckoning::Navigation;
+use echofield_frontend::matcher::{MatchOutcome, SearchWindow, match_scan};
+use echofield_graph::Se2;
+use nalgebra::Matrix3;
+use rayon::prelude::*;
+
+/// Floor of the odometry edges' standard deviations: 1 mm, 1 mm, 0.01°.
+pub const ODOMETRY_MIN_SIGMA: Window = Window::new(1e-3, 1e-3, 1.745_329_251_994_33e-4);
+
+/// The odometry motion `(k-1)_from_k` and its floored covariance.
+pub fn odometry(
+    navigation: &Navigation,
+    prev: &NodeData,
+    node: &NodeData,
+) -> Result<(Se2, Matrix3<f64>), SlamError> {
+    let (motion, cov) = navigation
+        .relative(prev.stamp_s, node.stamp_s)
+        .map_err(|e| SlamError::frontend("dead-reckoning motion between nodes", e))?;
+    Ok((motion, with_floor(&cov, &ODOMETRY_MIN_SIGMA)))
+}
+
+/// The sequential match of every node against its predecessor
+/// (`records[i]` is node `i + 1` against node `i`).
+pub fn match_all(
+    nodes: &[NodeData],
+    navigation: &Navigation,
+    config: &SlamConfig,
+) -> Result<Vec<SequentialRecord>, SlamError> {
+    if !config.sequential.enabled || nodes.len() < 2 {
+        return Ok(Vec::new());
+    }
+    (1..nodes.len())
+        .into_par_iter()
+        .map(|k| match_one(&nodes[k - 1], &nodes[k], k, navigation, config))
+        .collect()
+}
+
+fn match_one(
+    prev: &NodeData,
+    node: &NodeData,
+    k: usize,
+    navigation: &Navigation,
+    config: &SlamConfig,
+) -> Result<SequentialRecord, SlamError> {
+    let seq = &config.sequential;
+    let (prior, prior_cov) = odometry(navigation, prev, node)?;
+    let window = SearchWindow::from_covariance(
+        &prior_cov,
+        seq.n_sigma,
+        &seq.min_window.search(),
+        &seq.max_window.search(),
+    );
+    let mut record = SequentialRecord {
+        from: (k - 1) as u64,
+        to: k as u64,
+        prior,
+        prior_covariance: prior_cov,
+        window,
+        matched: None,
+        measurement: None,
+        quality: None,
+        covariance: None,
+        reverse: None,
+        prior_chi2: None,
+        accepted: false,
+        rejected_by: None,
+        no_match: None,
+    };
+    if !node.has_scan() || prev.image.is_empty() {
+        record.rejected_by = Some(RejectReason::NoData);
+        return Ok(record);
+    }
+    if node.in_dvl_gap || prev.in_dvl_gap {
+        record.rejected_by = Some(RejectReason::DvlGap);
+        return Ok(record);
+    }
+    let outcome = match_scan(
+        &node.scan.points,
+        &prev.image,
+        &prior,
+        &window,
+        &config.matcher,
+    )
+    .map_err(|e| SlamError::frontend(format!("sequential match {} -> {k}", k - 1), e))?;
+    let m = match outcome {
+        MatchOutcome::Match(m) => m,
+        MatchOutcome::NoMatch { reason } => {
+            record.rejected_by = Some(RejectReason::NoMatch);
+            record.no_match = Some(reason.to_string());
+            return Ok(record);
+        }
+    };
+    record.matched = Some(m.image_from_scan);
+    record.quality = Some(m.quality.clone());
+    record.covariance = Some(m.covariance);
+    let cov = with_floor(&m.covariance, &seq.min_sigma);
+    // Near the identity the vector form of prior⁻¹ ⊕ match is the
+    // difference of the two, with covariance about the sum of both.
+    let difference = prior.inverse().compose(&m.image_from_scan);
+    record.prior_chi2 = mahalanobis2(&difference, &symmetric(prior_cov + cov));
+    record.rejected_by = if m.quality.mean_intensity < seq.min_mean_intensity {
+        Some(RejectReason::Quality)
+    } else if information(&cov).is_none() {
+        Some(RejectReason::Covariance)
+    } else if record.prior_chi2.is_none_or(|c| c > seq.max_prior_chi2) {
+        Some(RejectReason::Prior)
+    } else {
+        None
+    };
+    record.measurement = Some(m.image_from_scan);
+    if record.rejected_by.is_none() && seq.symmetric && prev.has_scan() {
+        let tolerance = Tolerance {
+            window: seq.reverse_window.search(),
+            max_translation_m: seq.reverse_max_translation_m,
+            max_rotation_rad: seq.reverse_max_rotation_rad,
+        };
+        let (reverse, measurement) = reverse_match(
+            &m.image_from_scan,
+            &prev.scan.points,
+            &node.image,
+            &tolerance,
+            &config.matcher,
+        )
+        .map_err(|e| {
+            SlamError::frontend(format!("reverse sequential match {k} -> {}", k - 1), e)
+        })?;
+        record.reverse = Some(reverse);
+        match measurement {
+            Some(z) => record.measurement = Some(z),
+            None => record.rejected_by = Some(RejectReason::ReverseMismatch),
+        }
+    }
+    record.accepted = record.rejected_by.is_none();
+    Ok(record)
+}
+
+/// The covariance of an accepted sequential edge.
+pub fn edge_covariance(record: &SequentialRecord, config: &SlamConfig) -> Option<Matrix3<f64>> {
+    let cov = record.covariance?;
+    Some(with_floor(&cov, &config.sequential.min_sigma))
+}
