@@ -165,6 +165,47 @@ pub(crate) fn map_plot_area_px(
     Ok(chart.plotting_area().dim_in_pixel())
 }
 
+/// A chart on a bitmap with `f64` axes, as every plot here draws.
+pub(crate) type Chart<'a, 'b> = ChartContext<
+    'a,
+    BitMapBackend<'b>,
+    Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
+>;
+
+/// The grid, tick labels and axis names every plot shares.
+pub(crate) fn draw_grid(chart: &mut Chart<'_, '_>, x_desc: &str, y_desc: &str) -> Result<()> {
+    chart
+        .configure_mesh()
+        .x_desc(x_desc)
+        .y_desc(y_desc)
+        .label_style((FONT, 14))
+        .axis_desc_style((FONT, 16))
+        .light_line_style(RGBColor(235, 235, 235))
+        .bold_line_style(RGBColor(210, 210, 210))
+        .draw()
+        .map_err(plot_error)
+}
+
+/// The legend of the labelled series, in a framed box at `position`.
+pub(crate) fn draw_legend<'a, 'b: 'a>(
+    chart: &mut Chart<'a, 'b>,
+    position: SeriesLabelPosition,
+) -> Result<()> {
+    chart
+        .configure_series_labels()
+        .position(position)
+        .label_font((FONT, 15))
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .draw()
+        .map_err(plot_error)
+}
+
+/// A legend entry: a short line in `colour`.
+pub(crate) fn legend_line(colour: RGBColor) -> impl Fn((i32, i32)) -> PathElement<(i32, i32)> {
+    move |(x, y)| PathElement::new([(x, y), (x + 20, y)], colour.stroke_width(3))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

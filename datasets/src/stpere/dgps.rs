@@ -7,11 +7,15 @@
 //! (km/h). Fixes with status 0 are skipped and counted.
 
 use super::local_frame::{LocalTangentPlane, nmea_to_degrees};
-use super::text::{SkipReason, SkippedLine, StampOrder, TextLog};
+use super::text::{Layout, SkipReason, SkippedLine, TextLog};
 use crate::error::DatasetError;
 use serde::{Deserialize, Serialize};
 
-const COLUMNS: usize = 10;
+const LAYOUT: Layout = Layout {
+    columns: 10,
+    optional_id: true,
+    time: "time",
+};
 
 /// One DGPS fix as read, plus its position in the mission's local frame.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -39,28 +43,15 @@ pub(crate) fn parse_dgps(log: &TextLog) -> Result<DgpsLog, DatasetError> {
         frame: None,
         skipped: Vec::new(),
     };
-    let mut order = StampOrder::new();
-    for line in log.data_lines() {
-        let shift = usize::from(line.fields.len() == COLUMNS + 1);
-        if let Some(skip) = log.check_columns(&line, COLUMNS + shift)? {
-            out.skipped.push(skip);
-            continue;
-        }
-        let stamp_s = log.float(&line, 0, "time")?;
-        if !order.accept(log, line.line, stamp_s)? {
-            out.skipped
-                .push(log.skip(line.line, SkipReason::DuplicateStamp));
-            continue;
-        }
-        let status = log.integer(&line, 3 + shift, "status")?;
+    out.skipped = log.for_each_record(&LAYOUT, |record| {
+        let (line, shift, stamp_s) = (record.line, record.shift, record.stamp_s);
+        let status = log.integer(line, 3 + shift, "status")?;
         if status <= 0 {
-            out.skipped
-                .push(log.skip(line.line, SkipReason::NoGpsFix { status }));
-            continue;
+            return Ok(Some(SkipReason::NoGpsFix { status }));
         }
-        let latitude_deg = angle(log, &line, 1 + shift, "latitude", 90.0)?;
-        let longitude_deg = angle(log, &line, 2 + shift, "longitude", 180.0)?;
-        let altitude_m = log.float(&line, 4 + shift, "altitude")?;
+        let latitude_deg = angle(log, line, 1 + shift, "latitude", 90.0)?;
+        let longitude_deg = angle(log, line, 2 + shift, "longitude", 180.0)?;
+        let altitude_m = log.float(line, 4 + shift, "altitude")?;
         let frame = *out
             .frame
             .get_or_insert_with(|| LocalTangentPlane::new(latitude_deg, longitude_deg));
@@ -74,7 +65,8 @@ pub(crate) fn parse_dgps(log: &TextLog) -> Result<DgpsLog, DatasetError> {
             east_m,
             north_m,
         });
-    }
+        Ok(None)
+    })?;
     Ok(out)
 }
 

@@ -15,14 +15,18 @@
 //! and the components are kept as they are, only scaled to m/s.
 
 use super::mti::compass_to_yaw_rad;
-use super::text::{SkipReason, SkippedLine, StampOrder, TextLog};
+use super::text::{Layout, SkippedLine, TextLog};
 use crate::error::DatasetError;
 use echofield_frontend::sensors::{Attitude, DvlVelocity};
 use nalgebra::Vector3;
 
 /// Value the Argonaut writes for a velocity it could not measure, cm/s.
 pub const DVL_INVALID_CMPS: f64 = 32767.0;
-const COLUMNS: usize = 32;
+const LAYOUT: Layout = Layout {
+    columns: 32,
+    optional_id: true,
+    time: "time",
+};
 const BOTTOM_VX: usize = 11;
 const BOTTOM_STATUS: usize = 14;
 const HEADING: usize = 22;
@@ -45,29 +49,17 @@ pub(crate) fn parse_dvl(log: &TextLog) -> Result<DvlLog, DatasetError> {
         compass: Vec::new(),
         skipped: Vec::new(),
     };
-    let mut order = StampOrder::new();
-    for line in log.data_lines() {
-        // A filled idSensor column shifts everything after the time by one.
-        let shift = usize::from(line.fields.len() == COLUMNS + 1);
-        if let Some(skip) = log.check_columns(&line, COLUMNS + shift)? {
-            out.skipped.push(skip);
-            continue;
-        }
-        let stamp_s = log.float(&line, 0, "time")?;
-        if !order.accept(log, line.line, stamp_s)? {
-            out.skipped
-                .push(log.skip(line.line, SkipReason::DuplicateStamp));
-            continue;
-        }
+    out.skipped = log.for_each_record(&LAYOUT, |record| {
+        let (line, shift, stamp_s) = (record.line, record.shift, record.stamp_s);
         let names = ["bottomVelX", "bottomVelY", "bottomVelZ"];
         let mut velocity_cmps = [0.0; 3];
         for (k, name) in names.iter().enumerate() {
-            velocity_cmps[k] = log.float(&line, BOTTOM_VX + shift + k, name)?;
+            velocity_cmps[k] = log.float(line, BOTTOM_VX + shift + k, name)?;
         }
-        let status = log.integer(&line, BOTTOM_STATUS + shift, "bottomVelStatus")?;
-        let heading_deg = log.float(&line, HEADING + shift, "heading")?;
-        let pitch_deg = log.float(&line, PITCH + shift, "pitch")?;
-        let roll_deg = log.float(&line, ROLL + shift, "roll")?;
+        let status = log.integer(line, BOTTOM_STATUS + shift, "bottomVelStatus")?;
+        let heading_deg = log.float(line, HEADING + shift, "heading")?;
+        let pitch_deg = log.float(line, PITCH + shift, "pitch")?;
+        let roll_deg = log.float(line, ROLL + shift, "roll")?;
         let flagged = velocity_cmps.iter().any(|v| v.abs() >= DVL_INVALID_CMPS);
         let valid = status == 1 && !flagged;
         let velocity_mps = if valid {
@@ -88,7 +80,8 @@ pub(crate) fn parse_dvl(log: &TextLog) -> Result<DvlLog, DatasetError> {
             yaw_rad: compass_to_yaw_rad(heading_deg),
             yaw_rate_radps: None,
         });
-    }
+        Ok(None)
+    })?;
     Ok(out)
 }
 

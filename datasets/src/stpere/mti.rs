@@ -14,13 +14,17 @@
 //! east-north world frame: `yaw = π/2 − heading`, `pitch = −pitch_MTi`,
 //! `roll = roll_MTi`, yaw rate `= −rate_z`.
 
-use super::text::{SkipReason, SkippedLine, StampOrder, TextLog};
+use super::text::{Layout, SkippedLine, TextLog};
 use crate::error::DatasetError;
 use echofield_frontend::sensors::Attitude;
 use echofield_graph::wrap_angle;
 use std::f64::consts::FRAC_PI_2;
 
-const COLUMNS: usize = 10;
+const LAYOUT: Layout = Layout {
+    columns: 10,
+    optional_id: true,
+    time: "time",
+};
 
 /// A compass heading (degrees, clockwise from north) as echofield yaw
 /// (radians, counter-clockwise from east), wrapped to (−π, π].
@@ -38,30 +42,19 @@ pub(crate) fn parse_mti(log: &TextLog) -> Result<MtiLog, DatasetError> {
         samples: Vec::with_capacity(40_000),
         skipped: Vec::new(),
     };
-    let mut order = StampOrder::new();
-    for line in log.data_lines() {
-        let shift = usize::from(line.fields.len() == COLUMNS + 1);
-        if let Some(skip) = log.check_columns(&line, COLUMNS + shift)? {
-            out.skipped.push(skip);
-            continue;
-        }
-        let stamp_s = log.float(&line, 0, "time")?;
-        if !order.accept(log, line.line, stamp_s)? {
-            out.skipped
-                .push(log.skip(line.line, SkipReason::DuplicateStamp));
-            continue;
-        }
-        let roll_deg = log.float(&line, 1 + shift, "roll")?;
-        let pitch_deg = log.float(&line, 2 + shift, "pitch")?;
-        let heading_deg = log.float(&line, 3 + shift, "yaw")?;
-        let rate_z_radps = log.float(&line, 6 + shift, "rate z")?;
+    out.skipped = log.for_each_record(&LAYOUT, |record| {
+        let (line, shift, stamp_s) = (record.line, record.shift, record.stamp_s);
+        let roll_deg = log.float(line, 1 + shift, "roll")?;
+        let pitch_deg = log.float(line, 2 + shift, "pitch")?;
+        let heading_deg = log.float(line, 3 + shift, "yaw")?;
+        let rate_z_radps = log.float(line, 6 + shift, "rate z")?;
         // The accelerations are parsed only to reject a corrupt line.
         for (k, name) in ["rate x", "rate y", "acc x", "acc y", "acc z"]
             .iter()
             .enumerate()
         {
             let index = [4, 5, 7, 8, 9][k] + shift;
-            log.float(&line, index, name)?;
+            log.float(line, index, name)?;
         }
         out.samples.push(Attitude {
             stamp_s,
@@ -70,7 +63,8 @@ pub(crate) fn parse_mti(log: &TextLog) -> Result<MtiLog, DatasetError> {
             yaw_rad: compass_to_yaw_rad(heading_deg),
             yaw_rate_radps: Some(-rate_z_radps),
         });
-    }
+        Ok(None)
+    })?;
     Ok(out)
 }
 

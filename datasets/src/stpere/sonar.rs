@@ -8,7 +8,7 @@
 //!   passed through unchanged (the head's own convention; not verifiable
 //!   without the file).
 
-use super::text::{DataLine, SkipReason, SkippedLine, StampOrder, TextLog};
+use super::text::{DataLine, Layout, SkippedLine, TextLog};
 use crate::error::DatasetError;
 use echofield_frontend::sensors::SonarBeam;
 use serde::{Deserialize, Serialize};
@@ -77,24 +77,19 @@ pub(crate) fn parse_beam_stamps(
     log: &TextLog,
 ) -> Result<(Vec<BeamStamp>, Vec<SkippedLine>), DatasetError> {
     let mut stamps = Vec::with_capacity(50_000);
-    let mut skipped = Vec::new();
-    let mut order = StampOrder::new();
-    for line in log.data_lines() {
-        if let Some(skip) = log.check_columns(&line, 2)? {
-            skipped.push(skip);
-            continue;
-        }
-        let stamp_s = log.float(&line, 0, "time")?;
-        if !order.accept(log, line.line, stamp_s)? {
-            skipped.push(log.skip(line.line, SkipReason::DuplicateStamp));
-            continue;
-        }
-        let sensor_clock_ms = log.integer(&line, 1, "sensor clock")?;
+    let layout = Layout {
+        columns: 2,
+        optional_id: false,
+        time: "time",
+    };
+    let skipped = log.for_each_record(&layout, |record| {
+        let sensor_clock_ms = log.integer(record.line, 1, "sensor clock")?;
         stamps.push(BeamStamp {
-            stamp_s,
+            stamp_s: record.stamp_s,
             sensor_clock_ms,
         });
-    }
+        Ok(None)
+    })?;
     Ok((stamps, skipped))
 }
 
@@ -104,22 +99,17 @@ pub(crate) fn parse_beams(
 ) -> Result<(Vec<SonarBeam>, Vec<SkippedLine>), DatasetError> {
     let bins = setup.bins();
     let mut beams = Vec::new();
-    let mut skipped = Vec::new();
-    let mut order = StampOrder::new();
-    for line in log.data_lines() {
-        if let Some(skip) = log.check_columns(&line, 3 + bins)? {
-            skipped.push(skip);
-            continue;
-        }
-        let stamp_s = log.float(&line, 0, "logtime")?;
-        if !order.accept(log, line.line, stamp_s)? {
-            skipped.push(log.skip(line.line, SkipReason::DuplicateStamp));
-            continue;
-        }
-        log.float(&line, 1, "sensortime")?;
-        let angle_rad = log.float(&line, 2, "transducer_angle")?;
+    let layout = Layout {
+        columns: 3 + bins,
+        optional_id: false,
+        time: "logtime",
+    };
+    let skipped = log.for_each_record(&layout, |record| {
+        let (line, stamp_s) = (record.line, record.stamp_s);
+        log.float(line, 1, "sensortime")?;
+        let angle_rad = log.float(line, 2, "transducer_angle")?;
         let intensities = (0..bins)
-            .map(|i| intensity(log, &line, 3 + i))
+            .map(|i| intensity(log, line, 3 + i))
             .collect::<Result<Vec<u8>, _>>()?;
         beams.push(SonarBeam {
             stamp_s,
@@ -128,7 +118,8 @@ pub(crate) fn parse_beams(
             first_bin_range_m: 0.0,
             intensities,
         });
-    }
+        Ok(None)
+    })?;
     Ok((beams, skipped))
 }
 

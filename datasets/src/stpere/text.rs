@@ -171,6 +171,64 @@ impl TextLog {
     }
 }
 
+/// The column layout of one log, for [`TextLog::for_each_record`].
+pub(crate) struct Layout<'n> {
+    /// Data columns with the `[idSensor]` column empty.
+    pub columns: usize,
+    /// The log has an optional `[idSensor]` column after the time: a line
+    /// with one column more has it filled, shifting every later column.
+    pub optional_id: bool,
+    /// Name of the time column (column 1) in errors.
+    pub time: &'n str,
+}
+
+/// One record: its line, the shift of the columns after the time (1 when
+/// the `[idSensor]` column is filled) and its time stamp.
+pub(crate) struct Record<'l, 'a> {
+    pub line: &'l DataLine<'a>,
+    pub shift: usize,
+    pub stamp_s: f64,
+}
+
+impl TextLog {
+    /// Calls `visit` on every data line with the right column count and a
+    /// time not earlier than the line before, and returns the lines it
+    /// skipped: a truncated final line, a repeated stamp, and every record
+    /// for which `visit` returns a reason to skip it. A wrong column count
+    /// elsewhere, a bad number or a time going back is an error naming the
+    /// line and column.
+    pub fn for_each_record(
+        &self,
+        layout: &Layout<'_>,
+        mut visit: impl FnMut(Record<'_, '_>) -> Result<Option<SkipReason>, DatasetError>,
+    ) -> Result<Vec<SkippedLine>, DatasetError> {
+        let mut skipped = Vec::new();
+        let mut order = StampOrder::new();
+        for line in self.data_lines() {
+            let shift = usize::from(layout.optional_id && line.fields.len() == layout.columns + 1);
+            if let Some(skip) = self.check_columns(&line, layout.columns + shift)? {
+                skipped.push(skip);
+                continue;
+            }
+            let stamp_s = self.float(&line, 0, layout.time)?;
+            if !order.accept(self, line.line, stamp_s)? {
+                skipped.push(self.skip(line.line, SkipReason::DuplicateStamp));
+                continue;
+            }
+            let number = line.line;
+            let record = Record {
+                line: &line,
+                shift,
+                stamp_s,
+            };
+            if let Some(reason) = visit(record)? {
+                skipped.push(self.skip(number, reason));
+            }
+        }
+        Ok(skipped)
+    }
+}
+
 /// Tracks the time column of one log: equal stamps are skipped (a logger
 /// glitch), a stamp earlier than the previous one is an error.
 pub(crate) struct StampOrder {

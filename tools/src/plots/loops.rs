@@ -9,8 +9,8 @@
 
 use super::trajectory::OPTIMISED;
 use super::{
-    FONT, equal_aspect_ranges, legend_corner, map_chart_builder, map_plot_area_px, plot_error,
-    render_png,
+    draw_grid, draw_legend, equal_aspect_ranges, legend_corner, legend_line, map_chart_builder,
+    map_plot_area_px, plot_error, render_png,
 };
 use anyhow::Result;
 use plotters::prelude::*;
@@ -101,16 +101,7 @@ pub fn loops_png(
         let mut chart = map_chart_builder(root, caption)
             .build_cartesian_2d(xs, ys)
             .map_err(plot_error)?;
-        chart
-            .configure_mesh()
-            .x_desc("x (m)")
-            .y_desc("y (m)")
-            .label_style((FONT, 14))
-            .axis_desc_style((FONT, 16))
-            .light_line_style(RGBColor(235, 235, 235))
-            .bold_line_style(RGBColor(210, 210, 210))
-            .draw()
-            .map_err(plot_error)?;
+        draw_grid(&mut chart, "x (m)", "y (m)")?;
         let track = OPTIMISED.mix(0.6);
         chart
             .draw_series(LineSeries::new(
@@ -124,9 +115,7 @@ pub fn loops_png(
             let colour = rejected_colour(check);
             draw_segments(&mut chart, segments, colour.mix(0.55).stroke_width(1))?
                 .label(format!("rejected: {check} ({})", segments.len()))
-                .legend(move |(x, y)| {
-                    PathElement::new([(x, y), (x + 20, y)], colour.stroke_width(3))
-                });
+                .legend(legend_line(colour));
         }
         let names = [
             "accepted (no ground truth)",
@@ -140,27 +129,14 @@ pub fn loops_png(
             }
             draw_segments(&mut chart, segments, colour.stroke_width(2))?
                 .label(format!("{name} ({})", segments.len()))
-                .legend(move |(x, y)| {
-                    PathElement::new([(x, y), (x + 20, y)], colour.stroke_width(3))
-                });
+                .legend(legend_line(colour));
         }
-        chart
-            .configure_series_labels()
-            .position(corner)
-            .label_font((FONT, 15))
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .draw()
-            .map_err(plot_error)?;
+        draw_legend(&mut chart, corner)?;
         Ok(())
     })
 }
 
-type MapChart<'a, 'b> = ChartContext<
-    'a,
-    BitMapBackend<'b>,
-    Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
->;
+type MapChart<'a, 'b> = super::Chart<'a, 'b>;
 
 fn draw_segments<'c, 'a, 'b>(
     chart: &'c mut MapChart<'a, 'b>,

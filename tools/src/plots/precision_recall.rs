@@ -1,7 +1,7 @@
 //! `loops_pr.png`: precision against recall of the loop-closure gate, one
 //! curve per swept quality metric, with the best-F1 threshold marked.
 
-use super::{FONT, plot_error, render_png};
+use super::{FONT, draw_grid, draw_legend, legend_line, plot_error, render_png};
 use anyhow::Result;
 use plotters::prelude::*;
 
@@ -36,16 +36,7 @@ pub fn precision_recall_png(
             .y_label_area_size(56)
             .build_cartesian_2d(0.0..1.02, 0.0..1.02)
             .map_err(plot_error)?;
-        chart
-            .configure_mesh()
-            .x_desc("recall")
-            .y_desc("precision")
-            .label_style((FONT, 14))
-            .axis_desc_style((FONT, 16))
-            .light_line_style(RGBColor(235, 235, 235))
-            .bold_line_style(RGBColor(210, 210, 210))
-            .draw()
-            .map_err(plot_error)?;
+        draw_grid(&mut chart, "recall", "precision")?;
         for (k, curve) in curves.iter().enumerate() {
             let colour = COLOURS[k % COLOURS.len()];
             let label = match curve.best {
@@ -59,9 +50,7 @@ pub fn precision_recall_png(
                 ))
                 .map_err(plot_error)?
                 .label(label)
-                .legend(move |(x, y)| {
-                    PathElement::new([(x, y), (x + 20, y)], colour.stroke_width(3))
-                });
+                .legend(legend_line(colour));
             // Few points: show each threshold; many: the line says enough.
             if curve.points.len() <= 40 {
                 chart
@@ -79,14 +68,7 @@ pub fn precision_recall_png(
                     .map_err(plot_error)?;
             }
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::LowerLeft)
-            .label_font((FONT, 15))
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .draw()
-            .map_err(plot_error)?;
+        draw_legend(&mut chart, SeriesLabelPosition::LowerLeft)?;
         Ok(())
     })
 }

@@ -2,8 +2,8 @@
 //! y north, metres, equal aspect), with a legend.
 
 use super::{
-    FONT, equal_aspect_ranges, legend_corner, map_chart_builder, map_plot_area_px, plot_error,
-    render_png,
+    draw_grid, draw_legend, equal_aspect_ranges, legend_corner, legend_line, map_chart_builder,
+    map_plot_area_px, plot_error, render_png,
 };
 use anyhow::Result;
 use echofield_graph::Se2;
@@ -83,16 +83,7 @@ pub fn trajectory_png(tracks: &[Track], caption: &str, size_px: (u32, u32)) -> R
         let mut chart = map_chart_builder(root, caption)
             .build_cartesian_2d(xs, ys)
             .map_err(plot_error)?;
-        chart
-            .configure_mesh()
-            .x_desc("x (m)")
-            .y_desc("y (m)")
-            .label_style((FONT, 14))
-            .axis_desc_style((FONT, 16))
-            .light_line_style(RGBColor(235, 235, 235))
-            .bold_line_style(RGBColor(210, 210, 210))
-            .draw()
-            .map_err(plot_error)?;
+        draw_grid(&mut chart, "x (m)", "y (m)")?;
         for track in tracks.iter().filter(|t| !t.points.is_empty()) {
             let style = track.colour.stroke_width(track.width_px);
             let colour = track.colour;
@@ -100,9 +91,7 @@ pub fn trajectory_png(tracks: &[Track], caption: &str, size_px: (u32, u32)) -> R
                 .draw_series(LineSeries::new(track.points.iter().copied(), style))
                 .map_err(plot_error)?
                 .label(track.label.clone())
-                .legend(move |(x, y)| {
-                    PathElement::new([(x, y), (x + 20, y)], colour.stroke_width(3))
-                });
+                .legend(legend_line(colour));
             chart
                 .draw_series(std::iter::once(Circle::new(
                     track.points[0],
@@ -111,14 +100,7 @@ pub fn trajectory_png(tracks: &[Track], caption: &str, size_px: (u32, u32)) -> R
                 )))
                 .map_err(plot_error)?;
         }
-        chart
-            .configure_series_labels()
-            .position(corner)
-            .label_font((FONT, 15))
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .draw()
-            .map_err(plot_error)?;
+        draw_legend(&mut chart, corner)?;
         Ok(())
     })
 }
