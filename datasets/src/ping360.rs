@@ -13,6 +13,16 @@
 //! - `bin_size_m`: `0.5 · 1500 m/s · sample_period · 25 ns`; bins start at 0.
 //! - `intensities`: the 8-bit samples, `number_of_samples` of them.
 //!
+//! Gain, pulse length and transmit frequency are not part of a beam; they
+//! are listed in [`ReadStats::settings_changes`] (the committed logs start
+//! each range setting at low gain and switch to high gain a few dozen beams
+//! later). [`SonarRecording::repeated_angles`] lists the beams where the
+//! head pinged twice at one angle (after a late reply in these logs); the
+//! head's heading moved by 7-8 grad across the one in `inside_base`.
+//! Sector sweeps of a Ping360 show a small direction-dependent angle lag,
+//! ~0.46 grad per direction; `echofield_frontend::sweep_lag` estimates and
+//! corrects it (the reader reports the angles as the head sent them).
+//!
 //! Logs begin with pings at the 2 m default before the user's range applies,
 //! and users change the range during a log: beams are kept in file order
 //! with their own bin size and count, and
@@ -47,7 +57,7 @@ mod qt_stream;
 pub mod timestamp;
 
 use crate::error::DatasetError;
-use crate::sonar_recording::{ReadStats, SonarRecording};
+use crate::sonar_recording::{ReadStats, SettingsChange, SonarRecording};
 use echofield_frontend::sensors::SonarBeam;
 use echofield_graph::wrap_angle;
 use protocol::{DEVICE_DATA_ID, GRADIANS_PER_TURN};
@@ -89,8 +99,30 @@ pub fn read_ping360(path: &Path) -> Result<SonarRecording, DatasetError> {
             .chunks
             .partition_point(|c| c.stream_offset <= last_byte)
             - 1;
+        let stamp_s = container.chunks[chunk].elapsed_s;
+        let settings = SettingsChange {
+            first_beam: beams.len(),
+            stamp_s,
+            gain_setting: data.gain_setting,
+            transmit_duration_us: f64::from(data.transmit_duration_us),
+            transmit_frequency_khz: f64::from(data.transmit_frequency_khz),
+        };
+        let changed = stats.settings_changes.last().is_none_or(|last| {
+            (
+                last.gain_setting,
+                last.transmit_duration_us,
+                last.transmit_frequency_khz,
+            ) != (
+                settings.gain_setting,
+                settings.transmit_duration_us,
+                settings.transmit_frequency_khz,
+            )
+        });
+        if changed {
+            stats.settings_changes.push(settings);
+        }
         beams.push(SonarBeam {
-            stamp_s: container.chunks[chunk].elapsed_s,
+            stamp_s,
             angle_rad: wrap_angle(f64::from(data.angle_grad) * TAU / GRADIANS_PER_TURN),
             bin_size_m: data.bin_size_m(),
             first_bin_range_m: 0.0,

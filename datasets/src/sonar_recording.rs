@@ -46,6 +46,29 @@ pub struct ReadStats {
     /// Why the reader stopped before the end of the file, naming the record,
     /// byte offset and field; the beams before that point are kept.
     pub stopped_early: Option<String>,
+    /// The head's transmit and receive settings that a [`SonarBeam`] does
+    /// not carry, at the first beam and at every beam where one of them
+    /// changes. Empty when the format does not record them (MiniKing bags).
+    pub settings_changes: Vec<SettingsChange>,
+}
+
+/// Settings of the head from beam `first_beam` on (until the next change).
+/// Images built across a change of gain or pulse length mix intensities of
+/// different scales.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SettingsChange {
+    /// Index of the first beam with these settings in
+    /// [`SonarRecording::beams`].
+    pub first_beam: usize,
+    /// Stamp of that beam, seconds.
+    pub stamp_s: f64,
+    /// Receiver gain setting as the device numbers it (Ping360: 0 low,
+    /// 1 normal, 2 high).
+    pub gain_setting: u8,
+    /// Length of the transmitted pulse, microseconds.
+    pub transmit_duration_us: f64,
+    /// Transmit frequency, kHz.
+    pub transmit_frequency_khz: f64,
 }
 
 /// A run of consecutive beams with one range setting.
@@ -93,6 +116,26 @@ impl SonarRecording {
             }
         }
         segments
+    }
+
+    /// Indices of the beams that report the same angle, bin size and bin
+    /// count as the beam before them: the head pinged twice without
+    /// stepping. In both committed Ping360 logs that have one, the beam
+    /// before the repeat came several beam periods late. In
+    /// `Sensor_Log_01__inside_base.bin` the two 10 m turns on either side of
+    /// its repeat (beam 931, 45.86 s) image the same walls 7-8 grad apart
+    /// in angle: the head's heading (or its angle reference) moved there,
+    /// so rotations should not be compared across a repeat without checking
+    /// (see `datasets/tests/ping360_logs.rs`).
+    pub fn repeated_angles(&self) -> Vec<usize> {
+        (1..self.beams.len())
+            .filter(|&i| {
+                let (a, b) = (&self.beams[i - 1], &self.beams[i]);
+                a.angle_rad == b.angle_rad
+                    && a.intensities.len() == b.intensities.len()
+                    && (a.bin_size_m - b.bin_size_m).abs() < 1e-6
+            })
+            .collect()
     }
 
     /// A mission holding only these beams (no navigation), named after the
@@ -151,5 +194,24 @@ mod tests {
         );
         assert!((segs[2].range_m() - 4.0).abs() < 1e-12);
         assert_eq!(rec.to_mission().name, "x");
+        // Beam 6 repeats no angle (its bin count differs from beam 5's).
+        assert!(rec.repeated_angles().is_empty());
+    }
+
+    #[test]
+    fn a_repeated_angle_with_the_same_geometry_is_listed() {
+        let mut beams: Vec<_> = [0.1, 0.2, 0.2, 0.3, 0.3]
+            .iter()
+            .map(|&a| beam(a, 0.1, 10))
+            .collect();
+        beams[4].bin_size_m = 0.2;
+        let rec = SonarRecording {
+            path: PathBuf::from("x.bin"),
+            device: String::new(),
+            info: Vec::new(),
+            beams,
+            stats: ReadStats::default(),
+        };
+        assert_eq!(rec.repeated_angles(), vec![2]);
     }
 }

@@ -25,6 +25,19 @@
 //!   the rotation and lever arm of `vehicle_from_dvl` (the lever-arm term
 //!   only with `lever_arm_compensation`), noise from the sample's
 //!   covariance or `dvl_velocity_noise_mps`. Linear in the state.
+//!   Innovation gating: a sample with `νᵀ S⁻¹ ν > dvl_gate_chi2` (`ν` the
+//!   innovation, `S = H P Hᵀ + R` its predicted covariance, a χ² test with
+//!   2 degrees of freedom) is an outlier (lost bottom lock, fish, the
+//!   wall) and not used; after `dvl_gate_max_consecutive` rejections in a
+//!   row the next sample is used regardless. Without the gate a single
+//!   0.7 m/s outlier of the real St Pere DVL moves the pose by decimetres
+//!   while the covariance claims it cannot.
+//!   Noise adaptation (covariance matching): the DVL noise per axis is
+//!   re-estimated from the recent innovations (`dvl_noise_adaptation_samples`)
+//!   and used when larger than the configured `dvl_velocity_noise_mps`,
+//!   so a stretch where the instrument is noisier (the end of the St Pere
+//!   mission: 0.3-0.4 m/s instead of 0.1-0.15) gets wider covariances
+//!   rather than confidently wrong odometry.
 //! - **Attitude update** (every sample): the heading `yaw +
 //!   heading_offset_rad` as a direct measurement of ψ with standard
 //!   deviation `heading_noise_rad` (wrapped innovation), and the yaw rate,
@@ -84,6 +97,27 @@ pub struct DeadReckoningConfig {
     /// in m/s. Used for samples without a covariance (or all samples when
     /// `use_dvl_covariance` is false). Default 0.14 (the St Pere DVL).
     pub dvl_velocity_noise_mps: f64,
+    /// Innovation gate of the DVL update: a valid sample whose innovation's
+    /// squared Mahalanobis distance `νᵀ (H P Hᵀ + R)⁻¹ ν` exceeds this is
+    /// not used (bottom-lock outliers: the real St Pere DVL has isolated
+    /// 0.5-0.7 m/s errors). A χ² quantile with 2 degrees of freedom;
+    /// default 20 (p = 4.5e-5: about 4.5 standard deviations, only gross
+    /// errors). The tighter 13.82 (p = 0.001) also rejects the heavy tail
+    /// of good samples when the vehicle manoeuvres against the
+    /// constant-velocity model: on the St Pere replay it gave a worse
+    /// dead reckoning (3.8 m ATE instead of 3.1 m) and SLAM (0.35 m
+    /// instead of 0.32 m); 30 let outliers through (0.38 m). 0 turns the
+    /// gate off.
+    pub dvl_gate_chi2: f64,
+    /// After this many consecutive gated-out samples the next one is used
+    /// whatever its innovation, so that a real change of velocity the
+    /// model did not expect cannot lock the filter out. Default 3.
+    pub dvl_gate_max_consecutive: usize,
+    /// Innovation-based adaptation of the DVL noise: the noise per axis is
+    /// estimated from the innovations over about this many samples, and
+    /// used when larger than the configured one (which stays a floor).
+    /// 0 turns it off. Default 30 (about 20 s of the St Pere DVL).
+    pub dvl_noise_adaptation_samples: usize,
     /// Use the covariance a DVL sample carries (its x-y block, in (m/s)²)
     /// instead of `dvl_velocity_noise_mps`. Default true.
     pub use_dvl_covariance: bool,
@@ -131,6 +165,9 @@ impl Default for DeadReckoningConfig {
     fn default() -> Self {
         Self {
             dvl_velocity_noise_mps: 0.14,
+            dvl_gate_chi2: 20.0,
+            dvl_gate_max_consecutive: 3,
+            dvl_noise_adaptation_samples: 30,
             use_dvl_covariance: true,
             velocity_random_walk_mps_per_sqrt_s: 0.03,
             heading_noise_rad: 0.02,
@@ -176,6 +213,7 @@ impl DeadReckoningConfig {
                 self.heading_random_walk_rad_per_sqrt_s,
             ),
             ("max_extrapolation_s", self.max_extrapolation_s),
+            ("dvl_gate_chi2", self.dvl_gate_chi2),
         ];
         for (field, value) in non_negative {
             if !(value.is_finite() && value >= 0.0) {

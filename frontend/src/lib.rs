@@ -14,6 +14,7 @@ pub mod rotation;
 pub mod scan;
 pub mod segmentation;
 pub mod sensors;
+pub mod sweep_lag;
 
 pub use error::FrontendError;
 

@@ -9,7 +9,8 @@
 //! 1. [`search`]: branch-and-bound over a discretised window (cells in x and
 //!    y, an angle step that moves the farthest point by one cell), exact for
 //!    the score on the raster, with the max-pooled image pyramid as bounds;
-//!    a second search finds the best pose *separated* from the winner;
+//!    the search then resumes to find the best pose *separated* from the
+//!    winner;
 //! 2. [`refine`]: Nelder-Mead from the best lattice pose on the score with `I`
 //!    interpolated from the samples ([`AcousticImage::fine_value_at`]): the
 //!    raster's bilinear lookup peaks on cell centres, so an estimate taken
@@ -122,31 +123,22 @@ pub fn match_scan(
     };
     let problem = search::SearchProblem::new(&points, image, prior, &disc);
     let mut stats = search::SearchStats::default();
-    let mut leaves = Vec::new();
-    let record = config.second_peak.then_some(&mut leaves);
-    let Some(best) = problem.best_leaf(None, None, &mut stats, record) else {
+    let separation = |best: &search::Leaf| search::Exclusion {
+        centre: *best,
+        cells: config.peak_separation_m / cell_m,
+        angle_steps: (config.peak_separation_rad / angle_step_rad).floor() as i32,
+    };
+    let found = if config.second_peak {
+        problem
+            .best_and_separated(separation, &mut stats)
+            .map(|(best, second)| (best, second.map(|s| f64::from(s.score / best.score))))
+    } else {
+        problem.best_leaf(None, &mut stats).map(|best| (best, None))
+    };
+    let Some((best, second_peak_ratio)) = found else {
         return Ok(MatchOutcome::NoMatch {
             reason: NoMatchReason::NoOverlap,
         });
-    };
-    let second_peak_ratio = if config.second_peak {
-        let exclusion = search::Exclusion {
-            centre: best,
-            cells: config.peak_separation_m / cell_m,
-            angle_steps: (config.peak_separation_rad / angle_step_rad).floor() as i32,
-        };
-        // The best leaf the first search saw outside the zone is a valid
-        // score to beat, which keeps the second search's pruning tight.
-        let seed = leaves
-            .iter()
-            .filter(|l| !exclusion.contains(l))
-            .max_by(|a, b| a.score.total_cmp(&b.score))
-            .copied();
-        problem
-            .best_leaf(seed, Some(&exclusion), &mut stats, None)
-            .map(|second| f64::from(second.score / best.score))
-    } else {
-        None
     };
     let coarse = best.pose(prior, &disc, cell_m);
     // The refinement may not leave the window (plus the lattice's reach).

@@ -22,8 +22,12 @@
 //!   first sweep after the start of the data, or a continuous rotation whose
 //!   direction changes) is partial.
 //! - **Time gaps.** A stamp difference larger than `max_gap_beam_periods` beam
-//!   periods (the median stamp difference, or `beam_period_s`) ends the unit;
-//!   the next unit starts after the gap. The unit cut by the gap is partial.
+//!   periods ends the unit; the next unit starts after the gap. The unit cut
+//!   by the gap is partial. The beam period is `beam_period_s` if set, else
+//!   the median stamp difference within the run of beams with the beam's
+//!   bin size and count (a head pings more slowly at a longer range: a
+//!   Ping360 every 38 ms at 1 m and every 96 ms at 40 m in one log), or of
+//!   the whole stream for a run too short to have one.
 //! - **Changes of bin size, bin count or first-bin range** end the unit there;
 //!   the unit cut by the change is partial.
 //! - **Partial units** (cut by a gap, a change, a non-sweep reversal, or the
@@ -200,19 +204,36 @@ pub fn assemble_rotations(
 }
 
 /// The thresholds derived from the stream: median angular step, largest
-/// allowed time and angle steps.
+/// allowed time step per run of one geometry, largest angle step.
 struct Limits {
     step_rad: f64,
-    max_gap_s: f64,
+    /// `(first beam of the run, largest stamp step within it)`, in order.
+    max_gap_s: Vec<(usize, f64)>,
     max_step_rad: f64,
 }
 
 impl Limits {
     fn new(beams: &[SonarBeam], config: &RotationConfig) -> Self {
-        let beam_period_s = config
-            .beam_period_s
-            .or_else(|| median(beams.windows(2).map(|w| w[1].stamp_s - w[0].stamp_s)))
-            .unwrap_or(f64::INFINITY);
+        let stream_period_s = median(beams.windows(2).map(|w| w[1].stamp_s - w[0].stamp_s));
+        let mut max_gap_s = Vec::new();
+        let mut start = 0;
+        for end in 1..=beams.len() {
+            if end < beams.len() && same_geometry(&beams[end - 1], &beams[end]) {
+                continue;
+            }
+            let run_period_s = median(
+                beams[start..end]
+                    .windows(2)
+                    .map(|w| w[1].stamp_s - w[0].stamp_s),
+            );
+            let period_s = config
+                .beam_period_s
+                .or(run_period_s)
+                .or(stream_period_s)
+                .unwrap_or(f64::INFINITY);
+            max_gap_s.push((start, config.max_gap_beam_periods * period_s));
+            start = end;
+        }
         let step_rad = median(
             beams
                 .windows(2)
@@ -221,13 +242,22 @@ impl Limits {
         .unwrap_or(0.0);
         Self {
             step_rad,
-            max_gap_s: config.max_gap_beam_periods * beam_period_s,
+            max_gap_s,
             max_step_rad: if step_rad > 0.0 {
                 config.max_gap_beam_periods * step_rad
             } else {
                 f64::INFINITY
             },
         }
+    }
+}
+
+impl Limits {
+    /// The largest stamp step before beam `i` that is not a gap (that of
+    /// beam `i`'s run).
+    fn max_gap_before_s(&self, i: usize) -> f64 {
+        let run = self.max_gap_s.partition_point(|&(first, _)| first <= i) - 1;
+        self.max_gap_s[run].1
     }
 }
 
@@ -250,7 +280,7 @@ fn cut_units(beams: &[SonarBeam], limits: &Limits) -> Vec<Unit> {
         let step = wrap_angle(beam.angle_rad - prev.angle_rad);
         let reversal = step.abs() > limits.max_step_rad
             || (step != 0.0 && direction != 0.0 && step.signum() != direction);
-        let boundary = if beam.stamp_s - prev.stamp_s > limits.max_gap_s {
+        let boundary = if beam.stamp_s - prev.stamp_s > limits.max_gap_before_s(i) {
             Some(Boundary::Gap)
         } else if !same_geometry(prev, beam) {
             Some(Boundary::GeometryChange)

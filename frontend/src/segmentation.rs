@@ -5,7 +5,8 @@
 //! 1. optional smoothing: a centred moving average over `smoothing_bins`
 //!    bins (fewer at the beam ends);
 //! 2. the search window: bins whose centre lies in `[blind_zone_m,
-//!    max_range_m]`;
+//!    max_range_m]`, and, with `ringing_below_intensity` set, past the
+//!    beam's own ringing (below);
 //! 3. the threshold: a return must reach `min_intensity` (0-255) and
 //!    exceed `mean + min_sigma_above_mean · std` of the smoothed bins in the
 //!    window (the beam's own statistics, which rejects speckle on beams that
@@ -14,6 +15,19 @@
 //!    ([`PeakMode::Strongest`]), or up to `max_peaks` local maxima, strongest
 //!    first, each at least `min_peak_separation_m` from those already taken
 //!    ([`PeakMode::Multiple`]).
+//!
+//! **Ringing that changes from ping to ping.** A fixed blind zone has to
+//! cover the longest ringing of the log and so hides every echo nearer than
+//! that. At high gain a Ping360's ringing and near-field reverberation
+//! (bins above 200 of 255 from the transducer outward) lasts 0.3-2.9 m
+//! (1st-99th percentile, median 1.2 m) at the 10 m range, varying from ping
+//! to ping (`inside_base` log of `datasets/msis-real/ping360`). With
+//! `ringing_below_intensity` set, each beam's ringing is the run of
+//! (smoothed) bins from the first bin outward up to the first bin below
+//! that level, then down its falling edge to the first bin that is not
+//! lower than the next; the search window, and the statistics of step 3,
+//! start after it (or at `blind_zone_m` if that is farther). A beam that
+//! never drops below the level gives no return.
 //!
 //! A return's range is the far end of its bin, `first_bin_range_m + (i + 1) ·
 //! bin_size_m`, the same endpoint eq. (3) uses for the acoustic image, so a
@@ -41,6 +55,11 @@ pub struct SegmentationConfig {
     /// Bins whose centre is nearer than this are ignored (transducer ringing,
     /// the vehicle's own echoes), metres. Default 1.0.
     pub blind_zone_m: f64,
+    /// Per-beam ringing suppression (see the module doc): the search window
+    /// also starts at the first bin whose smoothed intensity (0-255) is
+    /// below this level. `None` (the default) disables it. For a high-gain
+    /// Ping360, about 200 (its ringing saturates at 255).
+    pub ringing_below_intensity: Option<f64>,
     /// Bins whose centre is farther than this are ignored, metres; `None`
     /// (the default) uses the whole beam.
     pub max_range_m: Option<f64>,
@@ -70,6 +89,7 @@ impl Default for SegmentationConfig {
     fn default() -> Self {
         Self {
             blind_zone_m: 1.0,
+            ringing_below_intensity: None,
             max_range_m: None,
             min_intensity: 50.0,
             min_sigma_above_mean: 3.0,
@@ -88,6 +108,14 @@ impl SegmentationConfig {
             return Err(FrontendError::config(
                 "blind_zone_m",
                 format!("must be finite and >= 0, got {}", self.blind_zone_m),
+            ));
+        }
+        if let Some(level) = self.ringing_below_intensity
+            && !(level > 0.0 && level <= 255.0)
+        {
+            return Err(FrontendError::config(
+                "ringing_below_intensity",
+                format!("must be in (0, 255], got {level}"),
             ));
         }
         if let Some(max) = self.max_range_m
@@ -169,6 +197,13 @@ pub(crate) fn extract_ranges_into(
         return;
     };
     smooth(&beam.intensities, config.smoothing_bins, smoothed);
+    let window = match config.ringing_below_intensity {
+        None => window,
+        Some(level) => match ringing_end(smoothed, level) {
+            Some(end) if end < window.end => window.start.max(end)..window.end,
+            _ => return,
+        },
+    };
     let values = &smoothed[window.clone()];
     let threshold = Threshold::new(values, config);
     let start = out.len();
@@ -223,6 +258,18 @@ pub(crate) fn extract_ranges_into(
             out[start..].sort_by_key(|r| r.bin);
         }
     }
+}
+
+/// The first bin after the ringing: the first bin below `level`, moved on
+/// down the ringing's falling edge while the values keep decreasing (the
+/// smoothing and the decay spread the edge over several bins). `None` when
+/// no bin is below `level`.
+fn ringing_end(smoothed: &[f32], level: f64) -> Option<usize> {
+    let mut end = smoothed.iter().position(|&v| f64::from(v) < level)?;
+    while end + 1 < smoothed.len() && smoothed[end + 1] < smoothed[end] {
+        end += 1;
+    }
+    Some(end)
 }
 
 /// The middle of the run of values equal to `values[i]` that starts at `i`:

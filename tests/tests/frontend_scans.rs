@@ -50,13 +50,17 @@ fn ekf_on_the_real_st_pere_navigation_follows_dgps() {
     let nav = dead_reckoning::run(mission, &DeadReckoningConfig::default()).unwrap();
     let errors = position_errors(&nav, &mission.ground_truth);
     let (mean_m, max_m) = (mean(&errors), errors.iter().copied().fold(0.0, f64::max));
-    // Over the 55.7 min, 637 m track. Measured: 3.59 m mean, 9.56 m max
-    // (the datasets crate's plain integrator of the DVL samples: 3.6 m
-    // mean, 12.5 m max; the earlier EKF that used each DVL sample as the
-    // velocity until the next: 3.62 m mean, 12.8 m max).
+    // Over the 55.7 min, 637 m track. Measured: 3.37 m mean, 11.33 m max
+    // with the DVL innovation gate and noise adaptation (without them:
+    // 3.59 m mean, 9.56 m max; the datasets crate's plain integrator of
+    // the DVL samples: 3.6 m mean, 12.5 m max; the earlier EKF that used
+    // each DVL sample as the velocity until the next: 3.62 m mean, 12.8 m
+    // max). The gate trades a lower mean for a larger peak late in the
+    // mission, where the DVL is noisiest; the SLAM result is what it is
+    // tuned for (tests/slam_stpere.rs).
     assert!(errors.len() > 3000, "{} DGPS fixes compared", errors.len());
     assert!(
-        mean_m < 4.0 && max_m < 11.0,
+        mean_m < 3.6 && max_m < 12.0,
         "mean {mean_m:.2} m, max {max_m:.2} m"
     );
 

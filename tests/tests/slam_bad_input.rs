@@ -163,7 +163,18 @@ fn without_loop_closures_the_trajectory_is_dead_reckoning_plus_sequential() {
         ate < 0.5 && ate <= dead_reckoning + 0.05,
         "{ate} vs {dead_reckoning}"
     );
-    assert_eq!(report.loop_precision, None);
+    // With ground truth the report still holds a precision: no loop was
+    // accepted, so none is wrong (documented convention), and the counts
+    // behind it are zero.
+    assert_eq!(report.loop_precision, Some(1.0));
+    let evaluation = report.loop_evaluation.as_ref().unwrap();
+    assert_eq!(
+        (evaluation.true_positives, evaluation.false_positives),
+        (0, 0)
+    );
+    let json = serde_json::to_value(report).unwrap();
+    assert_eq!(json["loop_precision"], serde_json::json!(1.0));
+    assert!(json["definitions"]["loop_precision"].is_string());
 }
 
 #[test]

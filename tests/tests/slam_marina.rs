@@ -101,9 +101,10 @@ fn marina_mission_is_five_times_better_than_dead_reckoning() {
     // The report agrees with the recomputation.
     assert!((report.ate_rmse_m.unwrap() - slam).abs() < 1e-6);
 
-    // Loops: many, nearly all within the true-positive tolerances, none
-    // grossly wrong. (Measured: precision 0.97, recall 0.86; see the
-    // pipeline's note for why the 1.0 / 0.9 targets are not met.)
+    // Loops: many, nearly all within the true-positive tolerances (0.5 m,
+    // 3 deg), none grossly wrong. Measured on seed 1: precision 0.993 (two
+    // loops 0.54-0.57 m off), recall 0.91 of the revisits; the issue's
+    // precision target 1.0 is not met.
     assert!(
         report.loops_accepted >= 150,
         "{} loops",
@@ -129,8 +130,10 @@ fn marina_mission_is_five_times_better_than_dead_reckoning() {
         wrong += usize::from(dt > 0.5);
     }
     let precision = 1.0 - wrong as f64 / report.loops_accepted as f64;
-    assert!(precision >= 0.95, "precision {precision:.3}");
+    assert!(precision >= 0.98, "precision {precision:.3}");
     assert!((report.loop_precision.unwrap() - precision).abs() < 1e-9);
     let recall = report.loop_recall.unwrap();
-    assert!(recall >= 0.8, "recall {recall:.3}");
+    assert!(recall >= 0.88, "recall {recall:.3}");
+    let pairs = report.loop_recall_pairs.unwrap();
+    assert!(pairs > 0.0 && pairs < recall, "pair recall {pairs:.3}");
 }

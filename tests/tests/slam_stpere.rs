@@ -30,15 +30,23 @@ fn st_pere_replay_is_within_a_metre_of_dgps() {
     let dead_reckoning = report.ate_dead_reckoning.as_ref().unwrap();
     assert_eq!(ate.pairs, report.nodes);
     assert!(ate.rmse_m <= 1.0, "ATE {:.3} m against DGPS", ate.rmse_m);
+    // Measured: 0.36 m against 3.8 m for dead reckoning.
     assert!(
-        ate.rmse_m < 0.5 * dead_reckoning.rmse_m,
+        ate.rmse_m < 0.2 * dead_reckoning.rmse_m,
         "{:.3} vs {:.3}",
         ate.rmse_m,
         dead_reckoning.rmse_m
     );
     assert!(
-        report.loops_accepted >= 50,
+        report.loops_accepted >= 200,
         "{} loops",
         report.loops_accepted
     );
+    // The real DVL has outliers: the dead-reckoning filter gates some.
+    // Loops: measured precision 0.98 (near misses 0.52-0.72 m off against
+    // the 0.5 m tolerance), recall 0.85 of the revisits.
+    let precision = report.loop_precision.unwrap();
+    assert!(precision >= 0.96, "precision {precision:.3}");
+    let recall = report.loop_recall.unwrap();
+    assert!(recall >= 0.8, "recall {recall:.3}");
 }

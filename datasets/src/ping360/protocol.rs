@@ -87,8 +87,14 @@ pub(crate) fn parse_messages(stream: &[u8]) -> Framing {
 /// The fields of a Ping360 `device_data` payload.
 #[derive(Debug, PartialEq)]
 pub(crate) struct DeviceData<'a> {
+    /// Receiver gain setting: 0 low, 1 normal, 2 high.
+    pub gain_setting: u8,
     pub angle_grad: u16,
+    /// Length of the transmitted pulse, microseconds.
+    pub transmit_duration_us: u16,
     pub sample_period_ticks: u16,
+    /// Transmit frequency, kHz.
+    pub transmit_frequency_khz: u16,
     pub data: &'a [u8],
 }
 
@@ -111,8 +117,11 @@ pub(crate) fn decode_device_data(payload: &[u8]) -> Result<DeviceData<'_>, Strin
         ));
     }
     let u16_at = |k: usize| u16::from_le_bytes([payload[k], payload[k + 1]]);
+    let gain_setting = payload[1];
     let angle_grad = u16_at(2);
+    let transmit_duration_us = u16_at(4);
     let sample_period_ticks = u16_at(6);
+    let transmit_frequency_khz = u16_at(8);
     let samples = usize::from(u16_at(10));
     let data_length = usize::from(u16_at(12));
     let data = &payload[FIXED..];
@@ -132,8 +141,11 @@ pub(crate) fn decode_device_data(payload: &[u8]) -> Result<DeviceData<'_>, Strin
         return Err("field `sample_period`: 0".into());
     }
     Ok(DeviceData {
+        gain_setting,
         angle_grad,
+        transmit_duration_us,
         sample_period_ticks,
+        transmit_frequency_khz,
         data,
     })
 }
@@ -203,6 +215,15 @@ mod tests {
         let payload = device_data_payload(399, 444, &[7; 1200]);
         let d = decode_device_data(&payload).unwrap();
         assert_eq!((d.angle_grad, d.data.len()), (399, 1200));
+        // The test payload's mode 1, gain 2, 5 us pulse at 750 kHz.
+        assert_eq!(
+            (
+                d.gain_setting,
+                d.transmit_duration_us,
+                d.transmit_frequency_khz
+            ),
+            (2, 5, 750)
+        );
         // 444 ticks: 0.5 * 1500 * 444 * 25e-9 = 8.325 mm, 9.99 m over 1200.
         assert!((d.bin_size_m() * 1200.0 - 9.99).abs() < 1e-9);
         assert!(decode_device_data(&device_data_payload(400, 444, &[1])).is_err());

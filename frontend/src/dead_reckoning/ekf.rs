@@ -94,6 +94,12 @@ fn check_stamp(
 /// then estimate it), rad/s: more than a slow AUV turns.
 const INITIAL_YAW_RATE_STD_RADPS: f64 = 0.1;
 
+/// Clip of one DVL sample's innovation power in the noise adaptation, in
+/// units of the current noise variance (the χ² 2-dof 0.999 quantile): an
+/// outlier raises the estimate by at most this over
+/// `dvl_noise_adaptation_samples`.
+const ADAPTATION_CLIP_CHI2: f64 = 13.82;
+
 enum Event<'a> {
     Dvl(&'a DvlVelocity),
     Attitude(&'a Attitude),
@@ -134,6 +140,10 @@ struct Ekf<'c> {
     stamp_s: f64,
     s: Vector6<f64>,
     p: Matrix6<f64>,
+    /// Estimated DVL noise variance per axis, (m/s)² (NaN before the first
+    /// sample), and the factor it gives the nominal noise (>= 1).
+    dvl_noise_var: f64,
+    dvl_noise_scale: f64,
 }
 
 impl<'c> Ekf<'c> {
@@ -158,6 +168,8 @@ impl<'c> Ekf<'c> {
             stamp_s: f64::NAN,
             s: Vector6::zeros(),
             p: Matrix6::zeros(),
+            dvl_noise_var: f64::NAN,
+            dvl_noise_scale: 1.0,
         }
     }
 
@@ -253,11 +265,64 @@ impl<'c> Ekf<'c> {
         i_kh
     }
 
-    fn update_dvl(&mut self, sample: &DvlVelocity) -> Matrix6<f64> {
+    /// The DVL update, unless the sample fails the innovation gate: its
+    /// squared Mahalanobis distance `νᵀ (H P Hᵀ + R)⁻¹ ν` exceeds
+    /// `dvl_gate_chi2` (a χ² quantile with 2 degrees of freedom). `R` is
+    /// the sample's nominal noise times the adaptive factor
+    /// ([`Self::adapt_dvl_noise`]). Returns `None` for a gated-out sample
+    /// (the state is left as predicted).
+    fn update_dvl(&mut self, sample: &DvlVelocity, gate: bool) -> Option<Matrix6<f64>> {
         let z = Vector2::new(sample.velocity_mps.x, sample.velocity_mps.y);
         let h = self.h_dvl;
         let innovation = z - h * self.s;
-        self.update2(&h, &innovation, &self.dvl_noise(sample))
+        let nominal = self.dvl_noise(sample);
+        let noise = nominal * self.dvl_noise_scale;
+        let predicted = h * self.p * h.transpose();
+        let d2 = (predicted + noise)
+            .try_inverse()
+            .map_or(f64::INFINITY, |s_inv| innovation.dot(&(s_inv * innovation)));
+        self.adapt_dvl_noise(&innovation, &predicted, &nominal);
+        if gate && self.config.dvl_gate_chi2 > 0.0 && d2 > self.config.dvl_gate_chi2 {
+            return None;
+        }
+        Some(self.update2(&h, &innovation, &noise))
+    }
+
+    /// Innovation-based noise adaptation (covariance matching): the
+    /// measurement noise per axis is estimated as an exponential moving
+    /// average, over about `dvl_noise_adaptation_samples` samples, of
+    /// `(νᵀν - tr(H P Hᵀ)) / 2` (the innovation power not explained by the
+    /// state's uncertainty), each sample's term clipped to `[0,
+    /// ADAPTATION_CLIP_CHI2 · σ²]` with `σ²` the current noise so that one
+    /// outlier moves it little. The factor applied to the nominal noise is
+    /// that estimate over the nominal variance, never below 1: the
+    /// configured noise is a floor, a noisier stretch of the mission (the
+    /// real St Pere DVL goes from 0.1 to 0.3-0.4 m/s standard deviation)
+    /// gets a larger noise and so a larger, honest covariance.
+    fn adapt_dvl_noise(
+        &mut self,
+        innovation: &Vector2<f64>,
+        predicted: &Matrix2<f64>,
+        nominal: &Matrix2<f64>,
+    ) {
+        let n = self.config.dvl_noise_adaptation_samples;
+        if n == 0 {
+            return;
+        }
+        let nominal_var = 0.5 * nominal.trace();
+        if nominal_var.is_nan() || nominal_var <= 0.0 {
+            return;
+        }
+        let current_var = nominal_var * self.dvl_noise_scale;
+        let cap = ADAPTATION_CLIP_CHI2 * current_var;
+        let power = (0.5 * (innovation.norm_squared() - predicted.trace())).clamp(0.0, cap);
+        let w = 1.0 / n as f64;
+        self.dvl_noise_var = if self.dvl_noise_var.is_nan() {
+            nominal_var
+        } else {
+            (1.0 - w) * self.dvl_noise_var + w * power
+        };
+        self.dvl_noise_scale = (self.dvl_noise_var / nominal_var).max(1.0);
     }
 
     /// Heading `yaw + heading_offset_rad` (wrapped innovation), then the
@@ -303,6 +368,11 @@ pub(super) fn filter(
     let mut last_attitude: Option<&Attitude> = None;
     let mut last_dvl: Option<&DvlVelocity> = None;
     let mut last_dvl_s = f64::NAN;
+    // Consecutive samples the gate rejected: after
+    // `dvl_gate_max_consecutive` of them the next one is used whatever its
+    // innovation, so a real change of velocity is not locked out.
+    let mut gated_in_row = 0usize;
+    let mut gated = 0usize;
     for (stamp_s, event) in &events {
         if steps.is_empty() {
             // Initialise at the first time both a velocity and a heading exist.
@@ -327,8 +397,19 @@ pub(super) fn filter(
                 if s.stamp_s - last_dvl_s > config.max_dvl_gap_s {
                     record_gap(&mut gaps, last_dvl_s, s.stamp_s);
                 }
-                last_dvl_s = s.stamp_s;
-                ekf.update_dvl(s) * f
+                let gate = gated_in_row < config.dvl_gate_max_consecutive;
+                match ekf.update_dvl(s, gate) {
+                    Some(i_kh) => {
+                        last_dvl_s = s.stamp_s;
+                        gated_in_row = 0;
+                        i_kh * f
+                    }
+                    None => {
+                        gated_in_row += 1;
+                        gated += 1;
+                        f
+                    }
+                }
             }
             Event::Attitude(a) => ekf.update_attitude(a) * f,
         };
@@ -337,17 +418,17 @@ pub(super) fn filter(
     if ekf.stamp_s - last_dvl_s > config.max_dvl_gap_s {
         record_gap(&mut gaps, last_dvl_s, ekf.stamp_s);
     }
+    if gated > 0 {
+        tracing::debug!(gated, "DVL samples rejected by the innovation gate");
+    }
     let smoothed = config.smoothing && steps.len() > 1;
     if smoothed {
         smoother::smooth(&mut steps, &predictions);
     }
-    Ok(Navigation::from_steps(
-        steps,
-        gaps,
-        config.max_extrapolation_s,
-        ekf.noise,
-        smoothed,
-    ))
+    let mut navigation =
+        Navigation::from_steps(steps, gaps, config.max_extrapolation_s, ekf.noise, smoothed);
+    navigation.set_dvl_gated(gated);
+    Ok(navigation)
 }
 
 fn record_gap(gaps: &mut Vec<DvlGap>, start_s: f64, end_s: f64) {

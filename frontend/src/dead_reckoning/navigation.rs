@@ -67,6 +67,8 @@ pub struct Navigation {
     /// The steps are RTS-smoothed (changes the meaning of
     /// `state_transition`, see [`NavigationStep`]).
     smoothed: bool,
+    /// Valid DVL samples the filter's innovation gate rejected.
+    dvl_gated: usize,
 }
 
 enum Location {
@@ -96,6 +98,7 @@ impl Navigation {
             max_extrapolation_s,
             noise,
             smoothed,
+            dvl_gated: 0,
         }
     }
 
@@ -211,6 +214,16 @@ impl Navigation {
     /// Intervals without valid DVL samples longer than `max_dvl_gap_s`.
     pub fn dvl_gaps(&self) -> &[DvlGap] {
         &self.dvl_gaps
+    }
+
+    /// How many valid DVL samples the innovation gate rejected
+    /// (`DeadReckoningConfig::dvl_gate_chi2`).
+    pub fn dvl_gated(&self) -> usize {
+        self.dvl_gated
+    }
+
+    pub(crate) fn set_dvl_gated(&mut self, count: usize) {
+        self.dvl_gated = count;
     }
 
     /// `world_from_vehicle` at `stamp_s` (see the type doc for interpolation

@@ -194,6 +194,10 @@ fn absolute_and_relative_covariances_match_monte_carlo_errors() {
             heading_random_walk_rad_per_sqrt_s: 0.0,
             yaw_rate_noise_radps: 2e-3,
             smoothing,
+            // The linear-Gaussian filter: the gate and the noise adaptation
+            // (a floor on the noise) are tested on their own below.
+            dvl_gate_chi2: 0.0,
+            dvl_noise_adaptation_samples: 0,
             ..DeadReckoningConfig::default()
         };
         check_monte_carlo(&CIRCLE, &circle, &config, (15.3, 52.1));
@@ -441,4 +445,99 @@ fn navigation_from_known_poses_and_stationary() {
     let (rel, cov) = still.relative(3.0, 70.0).unwrap();
     assert_eq!(rel, Se2::identity());
     assert_eq!(cov, Matrix3::zeros());
+}
+
+#[test]
+fn dvl_outliers_are_gated_out() {
+    // A straight run with DVL noise of the configured size and three
+    // isolated 1 m/s outliers across track (lost bottom lock).
+    let sim = SyntheticNavConfig {
+        dvl_noise_mps: 0.1,
+        ..SyntheticNavConfig::default()
+    };
+    let mut mission = synthetic_mission(&STRAIGHT, &sim, 3);
+    let outliers = [20, 45, 70];
+    for &i in &outliers {
+        mission.dvl[i].velocity_mps.y += 1.0;
+    }
+    let end_s = mission.dvl[85].stamp_s;
+    let end_error = |config: &DeadReckoningConfig| {
+        let nav = run(&mission, config).unwrap();
+        let error = pose_error(
+            &nav.pose_at(end_s).unwrap(),
+            &truth_at(&STRAIGHT, &sim, end_s),
+        );
+        (nav.dvl_gated(), error.0)
+    };
+    let (gated, with_gate) = end_error(&DeadReckoningConfig::default());
+    let (none, without_gate) = end_error(&DeadReckoningConfig {
+        dvl_gate_chi2: 0.0,
+        ..DeadReckoningConfig::default()
+    });
+    assert_eq!(none, 0);
+    // The outliers, and at most a few of the ~90 good samples
+    // (p = 0.001 each with the configured noise).
+    assert!((3..=5).contains(&gated), "{gated} gated");
+    // Each outlier integrates to ~1 m/s over a sample interval, averaged
+    // by the smoother: without the gate the across-track error shows it.
+    assert!(
+        with_gate < 0.6 * without_gate,
+        "gated {with_gate:.3} m, ungated {without_gate:.3} m"
+    );
+}
+
+#[test]
+fn noisier_dvl_than_configured_widens_the_covariance() {
+    // The configured noise is 0.14 m/s; the instrument gives 0.4 m/s.
+    let sim = SyntheticNavConfig {
+        dvl_noise_mps: 0.4,
+        ..SyntheticNavConfig::default()
+    };
+    let fixed = DeadReckoningConfig {
+        dvl_noise_adaptation_samples: 0,
+        ..DeadReckoningConfig::default()
+    };
+    let adaptive = DeadReckoningConfig::default();
+    let (from_s, to_s) = (sim.start_s + 20.0, sim.start_s + 34.0);
+    let mut sq = [0.0, 0.0];
+    let mut var = [0.0, 0.0];
+    let runs = 20;
+    for seed in 0..runs {
+        let mission = synthetic_mission(&STRAIGHT, &sim, 100 + seed);
+        let truth = truth_at(&STRAIGHT, &sim, from_s).between(&truth_at(&STRAIGHT, &sim, to_s));
+        for (i, config) in [&fixed, &adaptive].into_iter().enumerate() {
+            let nav = run(&mission, config).unwrap();
+            let (motion, cov) = nav.relative(from_s, to_s).unwrap();
+            sq[i] += (motion.translation() - truth.translation()).norm_squared();
+            var[i] += cov[(0, 0)] + cov[(1, 1)];
+        }
+    }
+    // Ratio of the actual squared error to the claimed variance (1 for an
+    // honest covariance): far above 1 without adaptation, near 1 with it.
+    let ratio = |i: usize| sq[i] / var[i];
+    assert!(ratio(0) > 3.0, "fixed noise: {:.2}", ratio(0));
+    assert!(
+        (0.4..2.0).contains(&ratio(1)),
+        "adaptive noise: {:.2}",
+        ratio(1)
+    );
+    // With the configured noise right, adaptation changes little.
+    let mission = synthetic_mission(
+        &STRAIGHT,
+        &SyntheticNavConfig {
+            dvl_noise_mps: 0.14,
+            ..SyntheticNavConfig::default()
+        },
+        7,
+    );
+    let cov = |config| {
+        run(&mission, config)
+            .unwrap()
+            .relative(from_s, to_s)
+            .unwrap()
+            .1
+    };
+    let (a, b) = (cov(&fixed), cov(&adaptive));
+    let growth = (b[(0, 0)] + b[(1, 1)]) / (a[(0, 0)] + a[(1, 1)]);
+    assert!((1.0..1.6).contains(&growth), "{growth}");
 }

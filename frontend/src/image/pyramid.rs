@@ -141,10 +141,16 @@ fn quantise(v: f32, scale: f32) -> u8 {
     if v.is_nan() || v <= 0.0 {
         return 0;
     }
-    let mut q = (v * scale).ceil().min(255.0);
+    // Ceiling without a libm call: truncate (the product is positive),
+    // then step up when that fell short.
+    let t = v * scale;
+    let mut q = (t as u32).min(255);
+    if q < 255 && (q as f32) < t {
+        q += 1;
+    }
     // Rounding of the product may land one step short.
-    if q < 255.0 && q / scale < v {
-        q += 1.0;
+    if q < 255 && q as f32 / scale < v {
+        q += 1;
     }
     q as u8
 }
@@ -154,19 +160,22 @@ fn quantise(v: f32, scale: f32) -> u8 {
 /// `in` holds single cells, and in general the union of two windows `s`
 /// apart.
 fn dilate(values: &[u8], width: usize, height: usize, s: usize) -> Vec<u8> {
-    let mut rows = vec![0u8; values.len()];
-    for (src, dst) in values.chunks_exact(width).zip(rows.chunks_exact_mut(width)) {
+    let mut out = vec![0u8; values.len()];
+    for (src, dst) in values.chunks_exact(width).zip(out.chunks_exact_mut(width)) {
         let split = width.saturating_sub(s);
         for ((d, a), b) in dst[..split].iter_mut().zip(src).zip(&src[s..]) {
             *d = (*a).max(*b);
         }
         dst[split..].copy_from_slice(&src[split..]);
     }
-    let mut out = rows.clone();
+    // In place, top down: row y + s is still the row pass's when row y
+    // reads it.
     for y in 0..height.saturating_sub(s) {
-        let (top, below) = (y * width, (y + s) * width);
-        let (head, tail) = out.split_at_mut(below);
-        for (d, b) in head[top..top + width].iter_mut().zip(&tail[..width]) {
+        let (head, tail) = out.split_at_mut((y + s) * width);
+        for (d, b) in head[y * width..(y + 1) * width]
+            .iter_mut()
+            .zip(&tail[..width])
+        {
             *d = (*d).max(*b);
         }
     }

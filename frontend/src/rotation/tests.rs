@@ -288,3 +288,32 @@ fn config_reads_from_json_with_defaults_and_rejects_unknown_keys() {
     let err = serde_json::from_str::<RotationConfig>(r#"{"max_gap": 2}"#).unwrap_err();
     assert!(err.to_string().contains("max_gap"));
 }
+
+#[test]
+fn the_beam_period_is_that_of_each_range_setting() {
+    // 600 beams at the short range (0.068 s apart), then 400 at a long range
+    // pinging every 0.2 s with one late reply of 0.5 s (2.5 periods, not a
+    // gap there, though more than 3 periods of the short range).
+    let mut beams = continuous(1000, 0.0, 1.0);
+    for (i, b) in beams.iter_mut().enumerate().skip(600) {
+        b.intensities = vec![0; 80];
+        b.stamp_s = 100.0 + 600.0 * PERIOD_S + (i - 600) as f64 * 0.2;
+        if i >= 700 {
+            b.stamp_s += 0.3;
+        }
+    }
+    let rotations = assemble_rotations(&beams, &RotationConfig::default()).unwrap();
+    assert_eq!(
+        ranges(&rotations),
+        vec![0..200, 200..400, 400..600, 600..800, 800..1000]
+    );
+    // A real gap of the long range (4 periods) still cuts.
+    for b in &mut beams[750..] {
+        b.stamp_s += 0.6;
+    }
+    let rotations = assemble_rotations(&beams, &RotationConfig::default()).unwrap();
+    assert_eq!(
+        ranges(&rotations),
+        vec![0..200, 200..400, 400..600, 750..950]
+    );
+}

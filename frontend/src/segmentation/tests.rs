@@ -313,3 +313,61 @@ fn config_validation_and_serde() {
     let err = serde_json::from_str::<SegmentationConfig>(r#"{"threshold": 3}"#).unwrap_err();
     assert!(err.to_string().contains("threshold"));
 }
+
+#[test]
+fn ringing_of_varying_length_is_skipped_per_beam() {
+    let config = SegmentationConfig {
+        blind_zone_m: 0.5,
+        ringing_below_intensity: Some(200.0),
+        min_sigma_above_mean: 0.0,
+        ..SegmentationConfig::default()
+    };
+    // Ringing saturates bins 0-39 (4 m) in one beam and 0-11 in the other;
+    // an echo of 180 at 6 m and one of 150 at 2.5 m.
+    let mut long = vec![5u8; 300];
+    long[..40].fill(255);
+    add_echo(&mut long, 60, 180);
+    let mut short = vec![5u8; 300];
+    short[..12].fill(255);
+    add_echo(&mut short, 25, 150);
+    assert_eq!(
+        bins(&extract_ranges(&beam(long.clone()), &config)),
+        vec![60]
+    );
+    assert_eq!(
+        bins(&extract_ranges(&beam(short.clone()), &config)),
+        vec![25]
+    );
+    // Without it the 0.5 m blind zone leaves the saturated bins in the
+    // window, and their plateau wins.
+    let fixed = SegmentationConfig {
+        ringing_below_intensity: None,
+        ..config.clone()
+    };
+    assert!(extract_ranges(&beam(long), &fixed)[0].bin < 40);
+    assert!(extract_ranges(&beam(short.clone()), &fixed)[0].bin < 12);
+    // The blind zone still applies when it is farther than the ringing.
+    let far_blind = SegmentationConfig {
+        blind_zone_m: 3.0,
+        ..config.clone()
+    };
+    assert!(extract_ranges(&beam(short), &far_blind).is_empty());
+    // A beam that rings to its end has no return.
+    assert!(extract_ranges(&beam(vec![255u8; 100]), &config).is_empty());
+}
+
+#[test]
+fn ringing_level_is_validated() {
+    for level in [0.0, -1.0, 256.0, f64::NAN] {
+        let config = SegmentationConfig {
+            ringing_below_intensity: Some(level),
+            ..SegmentationConfig::default()
+        };
+        assert!(config.validate().is_err(), "{level}");
+    }
+    let ok = SegmentationConfig {
+        ringing_below_intensity: Some(200.0),
+        ..SegmentationConfig::default()
+    };
+    ok.validate().unwrap();
+}

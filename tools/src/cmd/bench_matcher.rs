@@ -33,7 +33,10 @@ axis; see echofield::matching::evaluation), and by initial translation error, th
 successes, the mean time per match, the matcher's mean NEES over its
 successes (about 3 when its covariance is calibrated), and the share of
 matches whose covariance claims success-level precision (standard
-deviations below 0.3 m and 2 degrees) with their success rate.
+deviations below 0.3 m and 2 degrees) with their success rate, and how
+many of the matcher's failures put the scan where the mean score of eq. (5)
+is at least as high as at the true pose (an ambiguity of the score, e.g.
+along a quay, that no search can resolve; the rest are search failures).
 
 --navigation ground-truth compensates the vehicle's motion within each
 rotation with the ground truth instead of dead reckoning: the scans and

@@ -141,6 +141,13 @@ pub struct Trial {
     pub mean_score_at_truth: Option<f64>,
     /// The match's second-peak ratio (acoustic image only).
     pub second_peak_ratio: Option<f64>,
+    /// The true `image_from_scan` and the method's estimate `[x, y, θ]`
+    /// (m, m, rad), for studying the direction of the errors.
+    pub truth: [f64; 3],
+    pub estimate: Option<[f64; 3]>,
+    /// The matcher's best lattice pose before refinement (acoustic image
+    /// only).
+    pub coarse_estimate: Option<[f64; 3]>,
 }
 
 /// Everything measured.
@@ -229,6 +236,9 @@ pub fn evaluate(
                         mean_score: None,
                         mean_score_at_truth: None,
                         second_peak_ratio: None,
+                        truth: truth.to_vector().into(),
+                        estimate: result.map(|r| r.to_vector().into()),
+                        coarse_estimate: None,
                     }
                 };
                 let start = Instant::now();
@@ -254,6 +264,7 @@ pub fn evaluate(
                     trial.mean_score = Some(mean_score(source, &image, &m.image_from_scan));
                     trial.mean_score_at_truth = Some(mean_score(source, &image, &truth));
                     trial.second_peak_ratio = m.quality.second_peak_ratio;
+                    trial.coarse_estimate = Some(m.coarse.to_vector().into());
                 }
                 trials.push(trial);
                 let start = Instant::now();
@@ -448,9 +459,9 @@ impl Evaluation {
         let min_c = self.config.min_constraint;
         let _ = writeln!(
             out,
-            "| pairs | method | trials | success | constrained pairs (≥ {min_c}) | init <1 m | init 1-3 m | init 3-{max:.0} m | median error (succ.) | mean time | mean NEES (succ.) | confident: share, success |"
+            "| pairs | method | trials | success | constrained pairs (≥ {min_c}) | init <1 m | init 1-3 m | init 3-{max:.0} m | median error (succ.) | mean time | mean NEES (succ.) | confident: share, success | failures scoring ≥ truth |"
         );
-        let _ = writeln!(out, "|---|---|---|---|---|---|---|---|---|---|---|---|");
+        let _ = writeln!(out, "|---|---|---|---|---|---|---|---|---|---|---|---|---|");
         for kind in [PairKind::Consecutive, PairKind::NonConsecutive] {
             for method in [Method::AcousticImage, Method::Icp] {
                 let trials: Vec<&Trial> = self
@@ -524,6 +535,18 @@ impl Evaluation {
                         rate(&confident)
                     )
                 };
+                // A failure whose estimate scores at least as high as the
+                // truth is an ambiguity of eq. (5), not of the search.
+                let failures: Vec<&Trial> = trials.iter().copied().filter(|t| !t.success).collect();
+                let ambiguous = failures
+                    .iter()
+                    .filter(|t| matches!((t.mean_score, t.mean_score_at_truth), (Some(e), Some(t)) if e >= t))
+                    .count();
+                let ambiguous = if method == Method::Icp {
+                    "-".to_string()
+                } else {
+                    format!("{ambiguous}/{}", failures.len())
+                };
                 let constrained: Vec<&Trial> = trials
                     .iter()
                     .copied()
@@ -531,7 +554,7 @@ impl Evaluation {
                     .collect();
                 let _ = writeln!(
                     out,
-                    "| {kind:?} | {method:?} | {} | {} | {} | {} | {} | {} | {median_error} | {mean_ms:.2} ms | {mean_nees} | {confident} |",
+                    "| {kind:?} | {method:?} | {} | {} | {} | {} | {} | {} | {median_error} | {mean_ms:.2} ms | {mean_nees} | {confident} | {ambiguous} |",
                     trials.len(),
                     rate(&trials),
                     rate(&constrained),

@@ -22,8 +22,10 @@
 //!   `j` saw too.
 //! - **Recall pairs**: node pairs `(j, k)` with `k - j >=
 //!   loops.min_separation_nodes` and ground-truth scan overlap at least
-//!   `recall_min_overlap`, whether or not the pipeline picked them as
-//!   candidates. A **revisit** is a node `k` that is the newer node of at
+//!   `recall_min_overlap` (default 0.4, the lowest overlap at which a
+//!   correctly registered pair passes the loop quality gate, see
+//!   [`super::config::EvaluationConfig`]), whether or not the pipeline
+//!   picked them as candidates. A **revisit** is a node `k` that is the newer node of at
 //!   least one recall pair: the vehicle is back where it has been.
 //! - **Recall** (`loop_recall`) = revisits `k` that are the newer node of
 //!   at least one accepted true-positive loop / revisits: how many of the
@@ -107,6 +109,7 @@ pub fn evaluate(
     let min_separation = config.loops.min_separation_nodes;
     let (mut recall_pairs, mut recalled_pairs) = (0, 0);
     let (mut recall_nodes, mut recalled_nodes) = (0, 0);
+    let mut missed_revisits = Vec::new();
     let closed: HashSet<usize> = true_positive_pairs.iter().map(|&(_, k)| k).collect();
     for k in min_separation..nodes.len() {
         let mut revisit = false;
@@ -119,10 +122,20 @@ pub fn evaluate(
         }
         if revisit {
             recall_nodes += 1;
-            recalled_nodes += usize::from(closed.contains(&k));
+            if closed.contains(&k) {
+                recalled_nodes += 1;
+            } else {
+                missed_revisits.push(k as u64);
+            }
         }
     }
-    report.loop_precision = (tp + fp > 0).then(|| tp as f64 / (tp + fp) as f64);
+    // No accepted loop: no false positive, precision 1 by convention (the
+    // counts in `loop_evaluation` show that nothing was accepted).
+    report.loop_precision = Some(if tp + fp > 0 {
+        tp as f64 / (tp + fp) as f64
+    } else {
+        1.0
+    });
     report.loop_recall = (recall_nodes > 0).then(|| recalled_nodes as f64 / recall_nodes as f64);
     report.loop_recall_pairs =
         (recall_pairs > 0).then(|| recalled_pairs as f64 / recall_pairs as f64);
@@ -133,6 +146,7 @@ pub fn evaluate(
         recalled_nodes,
         recall_pairs,
         recalled_pairs,
+        missed_revisits,
         candidate_true_positives: candidate_tp,
     });
     report.definitions = definitions(config);
@@ -257,11 +271,11 @@ fn definitions(config: &SlamConfig) -> BTreeMap<String, String> {
         ("distance_travelled_m", "ground-truth path length between the first and the last node stamp".to_string()),
         ("rpe", "relative pose error over the node poses: for each node, the first later node at least d metres further along the ground-truth path".to_string()),
         ("true_positive", format!("an accepted loop whose edge measurement is within {} m and {} deg of the ground-truth relative pose", e.true_positive_translation_m, e.true_positive_rotation_deg)),
-        ("loop_precision", "true positives / accepted loops (absent when no loop is accepted)".to_string()),
+        ("loop_precision", "true positives / accepted loops (1 when no loop is accepted: no accepted loop is wrong; `loop_evaluation` then shows 0 true and 0 false positives)".to_string()),
         ("gt_overlap", format!("fraction of the points of S_k, placed in node j's frame with the ground-truth relative pose, that fall in a {0} m cell holding a point of S_j or next to one", e.overlap_distance_m)),
-        ("recall_pair", format!("a node pair (j, k) with k - j >= {} and ground-truth scan overlap >= {}", config.loops.min_separation_nodes, e.recall_min_overlap)),
-        ("loop_recall", "revisit nodes (the newer node of at least one recall pair) that are the newer node of an accepted true-positive loop, over all revisit nodes".to_string()),
-        ("loop_recall_pairs", "recall pairs joined by an accepted true-positive loop, over all recall pairs".to_string()),
+        ("recall_pair", format!("a node pair (j, k) with k - j >= {} and ground-truth scan overlap >= {} (below that overlap a correctly registered pair cannot reach the quality gate's mean intensity {})", config.loops.min_separation_nodes, e.recall_min_overlap, config.loops.min_mean_intensity)),
+        ("loop_recall", "revisit nodes (the newer node of at least one recall pair) that are the newer node of an accepted true-positive loop, over all revisit nodes: how many returns to a known place were recognised (each node is matched against at most loops.max_candidates_per_node older ones, so a pair-level figure cannot reach 1)".to_string()),
+        ("loop_recall_pairs", "recall pairs joined by an accepted true-positive loop, over all recall pairs (pair level; low by construction, reported for completeness)".to_string()),
     ];
     entries
         .into_iter()

@@ -280,6 +280,8 @@ pub struct LoopEvaluation {
     pub recall_pairs: usize,
     /// Of which joined by an accepted true-positive loop edge.
     pub recalled_pairs: usize,
+    /// Revisit nodes with no accepted true-positive loop, for inspection.
+    pub missed_revisits: Vec<u64>,
     /// Candidates (matched or not) whose match lies within the tolerances.
     pub candidate_true_positives: usize,
 }
@@ -338,7 +340,9 @@ pub struct Report {
     pub rpe: Option<Vec<RpeStats>>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub rpe_dead_reckoning: Option<Vec<RpeStats>>,
-    /// True positives / accepted loops (1 when none is accepted).
+    /// True positives / accepted loops; 1 when none is accepted (no
+    /// accepted loop is wrong). Present whenever the mission has ground
+    /// truth.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub loop_precision: Option<f64>,
     /// Recognised revisit nodes / revisit nodes (see `definitions`).

@@ -72,8 +72,13 @@ pub struct LoopConfig {
     /// Default 0.5 m, 0.5 m, 3°.
     pub reverse_window: Window,
     /// The forward match and the inverse of the reverse match must agree
-    /// to within this distance (m) ... Default 0.75 (right matches
-    /// disagree by up to about half a metre, see `slam::symmetric`).
+    /// to within this distance (m) ... Default 0.5. On 0.2 m cells the
+    /// disagreement is quantised (0, 0.2, 0.28, 0.4, 0.45, 0.57, ...);
+    /// over the marina and St Pere missions 90 % of the true-positive
+    /// loops disagree by at most 0.45 m, while most loops that ended
+    /// 0.5-0.8 m off disagreed by 0.57-0.72 m. 0.75 kept those (precision
+    /// 0.98-0.99 instead of 0.99-0.997) for about 6 % more loops and no
+    /// gain in recall of revisits.
     pub reverse_max_translation_m: f64,
     /// ... and this angle (rad). Default 2°.
     pub reverse_max_rotation_rad: f64,
@@ -110,7 +115,7 @@ impl Default for LoopConfig {
             min_sigma: Window::new(0.05, 0.05, 0.5_f64.to_radians()),
             window_edge_fraction: 0.05,
             reverse_window: Window::new(0.5, 0.5, 3.0_f64.to_radians()),
-            reverse_max_translation_m: 0.75,
+            reverse_max_translation_m: 0.5,
             reverse_max_rotation_rad: 2.0_f64.to_radians(),
             consistency_max_chi2: 11.34,
             drift_fraction: 0.02,
