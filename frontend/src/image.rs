@@ -249,7 +249,7 @@ impl AcousticImage {
     /// Wraps an existing grid (for tests and for images made elsewhere).
     pub fn from_grid(grid: Grid, pyramid_levels: usize) -> Self {
         let pyramid = Pyramid::build(&grid, pyramid_levels);
-        let max_value = grid.values().iter().copied().fold(0.0_f32, f32::max);
+        let max_value = pyramid.max_value();
         Self {
             grid,
             pyramid,

@@ -16,7 +16,9 @@
 //!    raster's bilinear lookup peaks on cell centres, so an estimate taken
 //!    from it snaps towards them by up to half a cell;
 //! 3. [`covariance`]: a quadratic fit of the raster score around `x*` and a
-//!    Laplace approximation give the covariance.
+//!    Laplace approximation give the covariance. With the refinement off
+//!    (`refine_iterations = 0`), the fitted quadratic's peak (a Newton step
+//!    of at most one lattice step) is the sub-cell estimate instead.
 //!
 //! Bad input (NaN points or prior, invalid window or config) is an `Err`;
 //! data that cannot be matched gives [`MatchOutcome::NoMatch`] with a
@@ -165,12 +167,19 @@ pub fn match_scan(
         &points,
         image,
         &refined.pose,
-        &steps,
+        steps.z,
         2,
         &bound,
         config.covariance_scale,
     );
-    let pose = refined.pose;
+    // Without the simplex, the peak of the fitted quadratic gives the
+    // sub-cell pose (the lattice pose is quantised to the cells).
+    let pose = if config.refine_iterations == 0 {
+        let v = refined.pose.to_vector() + fit.peak_offset;
+        Se2::new(v.x, v.y, v.z)
+    } else {
+        refined.pose
+    };
     let mean = mean_score(&points, image, &pose);
     let inside = points
         .iter()

@@ -5,6 +5,9 @@
 
 use nalgebra::Vector2;
 
+/// Largest radius of [`Grid::add_bilinear_shifts`], in cells.
+pub const MAX_SHIFT_RADIUS: usize = 3;
+
 #[derive(Clone, Debug, PartialEq)]
 pub struct Grid {
     origin_x_m: f64,
@@ -147,6 +150,54 @@ impl Grid {
         }
     }
 
+    /// Adds to `sums` the bilinear value ([`Grid::bilinear`]) at every
+    /// point `(x + a·cell, y + b·cell)`, `a, b ∈ -r..=r`, in row-major order
+    /// of `(b, a)` (`sums.len() == (2r + 1)²`). The shifts are whole cells,
+    /// so all of them share the fractional position and read one
+    /// `(2r + 2)²` patch of cells: far cheaper than `(2r + 1)²` separate
+    /// lookups. `r` is at most [`MAX_SHIFT_RADIUS`].
+    pub fn add_bilinear_shifts(&self, x_m: f64, y_m: f64, r: usize, sums: &mut [f64]) {
+        assert!(
+            r <= MAX_SHIFT_RADIUS,
+            "shift radius {r} > {MAX_SHIFT_RADIUS}"
+        );
+        let n = 2 * r + 1;
+        assert_eq!(sums.len(), n * n, "one sum per shift");
+        let (gx, gy) = self.lattice(x_m, y_m);
+        if !(gx.is_finite() && gy.is_finite()) {
+            return;
+        }
+        let (fx0, fy0) = (gx.floor(), gy.floor());
+        let (fx, fy) = (gx - fx0, gy - fy0);
+        let (ix, iy) = (fx0 as i64 - r as i64, fy0 as i64 - r as i64);
+        let side = n + 1;
+        let (w, h) = (self.width as i64, self.height as i64);
+        if ix >= w || iy >= h || ix + side as i64 <= 0 || iy + side as i64 <= 0 {
+            return;
+        }
+        let mut patch = [0.0_f64; (MAX_SHIFT_RADIUS * 2 + 2) * (MAX_SHIFT_RADIUS * 2 + 2)];
+        let interior = ix >= 0 && iy >= 0 && ix + side as i64 <= w && iy + side as i64 <= h;
+        for dy in 0..side {
+            for dx in 0..side {
+                patch[dy * side + dx] = f64::from(if interior {
+                    self.values[(iy as usize + dy) * self.width + ix as usize + dx]
+                } else {
+                    self.cell(ix + dx as i64, iy + dy as i64)
+                });
+            }
+        }
+        for b in 0..n {
+            for a in 0..n {
+                let k = b * side + a;
+                let (v00, v10, v01, v11) =
+                    (patch[k], patch[k + 1], patch[k + side], patch[k + side + 1]);
+                let bottom = v00 + fx * (v10 - v00);
+                let top = v01 + fx * (v11 - v01);
+                sums[b * n + a] += bottom + fy * (top - bottom);
+            }
+        }
+    }
+
     /// Bilinear value and its gradient in 1/m.
     #[inline]
     pub fn bilinear_with_gradient(&self, x_m: f64, y_m: f64) -> (f64, Vector2<f64>) {
@@ -227,6 +278,40 @@ fn binomial_row(src: &[f32], dst: &mut [f32]) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn bilinear_shifts_equal_separate_lookups_inside_and_at_the_edges() {
+        let g = ramp();
+        let cell = g.cell_size_m();
+        // Points inside, near every edge, beyond the grid and NaN.
+        let points = [
+            (0.3, 3.1),
+            (-0.9, 2.05),
+            (1.9, 4.4),
+            (-2.2, 1.0),
+            (4.0, 6.5),
+            (0.71, 2.6),
+            (f64::NAN, 3.0),
+        ];
+        for r in 1..=MAX_SHIFT_RADIUS {
+            let n = 2 * r + 1;
+            for &(x, y) in &points {
+                let mut sums = vec![0.5; n * n];
+                g.add_bilinear_shifts(x, y, r, &mut sums);
+                for b in 0..n {
+                    for a in 0..n {
+                        let (dx, dy) = ((a as f64 - r as f64) * cell, (b as f64 - r as f64) * cell);
+                        let expected = 0.5 + g.bilinear(x + dx, y + dy);
+                        let got = sums[b * n + a];
+                        assert!(
+                            (got - expected).abs() < 1e-9,
+                            "r {r} at ({x}, {y}) shift ({a}, {b}): {got} vs {expected}"
+                        );
+                    }
+                }
+            }
+        }
+    }
 
     fn ramp() -> Grid {
         // v = 2·ix + 3·iy at cell centres.

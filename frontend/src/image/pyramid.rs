@@ -72,13 +72,15 @@ pub struct Pyramid {
     levels: Vec<PyramidLevel>,
     /// Quantisation: a stored value `q` stands for at most `q / scale`.
     scale: f32,
+    /// The largest value of the raster (0 for an empty one).
+    max_value: f32,
 }
 
 impl Pyramid {
     /// Levels `1..=levels` of `grid`.
     pub fn build(grid: &Grid, levels: usize) -> Self {
         let (width, height) = (grid.width(), grid.height());
-        let max = grid.values().iter().copied().fold(0.0_f32, f32::max);
+        let max = max_value(grid.values());
         // A hair below 255 / max, so that 255 / scale ≥ max survives f32
         // rounding and the largest value's bound stays an upper bound.
         let scale = if max > 0.0 {
@@ -90,6 +92,7 @@ impl Pyramid {
             return Self {
                 levels: Vec::new(),
                 scale,
+                max_value: max,
             };
         }
         let quantised: Vec<u8> = grid.values().iter().map(|&v| quantise(v, scale)).collect();
@@ -112,7 +115,11 @@ impl Pyramid {
                 values: dilate(&previous.values, width, height, shift),
             });
         }
-        Self { levels: out, scale }
+        Self {
+            levels: out,
+            scale,
+            max_value: max,
+        }
     }
 
     /// Number of levels above the raster (the raster itself is level 0).
@@ -129,6 +136,12 @@ impl Pyramid {
         &self.levels[h - 1]
     }
 
+    /// The largest value of the raster the pyramid was built from (0 for
+    /// an empty raster).
+    pub fn max_value(&self) -> f32 {
+        self.max_value
+    }
+
     /// Stored values are in units of `1 / scale`: a sum of stored values
     /// divided by `scale` bounds the sum of the raster values.
     pub fn scale(&self) -> f32 {
@@ -136,23 +149,42 @@ impl Pyramid {
     }
 }
 
-/// The smallest `q` with `q / scale ≥ v` (0 for `v ≤ 0`, 255 at most).
+/// The largest value of `values`, at least 0 (NaN is ignored). Eight
+/// lanes of running maxima, so the loop vectorises (`f32::max` over one
+/// accumulator is a serial chain).
+fn max_value(values: &[f32]) -> f32 {
+    let mut lanes = [0.0_f32; 8];
+    let chunks = values.chunks_exact(8);
+    let rest = chunks.remainder();
+    for chunk in chunks {
+        for (m, &v) in lanes.iter_mut().zip(chunk) {
+            // `v > m` is false for NaN: NaN never enters.
+            *m = if v > *m { v } else { *m };
+        }
+    }
+    let mut max = rest.iter().fold(0.0_f32, |m, &v| if v > m { v } else { m });
+    for m in lanes {
+        max = if m > max { m } else { max };
+    }
+    max
+}
+
+/// The smallest `q` with `q / scale ≥ v` (0 for `v ≤ 0` and NaN, 255 at
+/// most). Branch-free, so that the loop over a grid vectorises.
+#[inline]
 fn quantise(v: f32, scale: f32) -> u8 {
-    if v.is_nan() || v <= 0.0 {
-        return 0;
-    }
-    // Ceiling without a libm call: truncate (the product is positive),
-    // then step up when that fell short.
+    // `t > 0` is false for NaN and non-positive values; i32 and `&`
+    // rather than u32 and `&&` keep the loop free of branches.
     let t = v * scale;
-    let mut q = (t as u32).min(255);
-    if q < 255 && (q as f32) < t {
-        q += 1;
-    }
-    // Rounding of the product may land one step short.
-    if q < 255 && q as f32 / scale < v {
-        q += 1;
-    }
-    q as u8
+    let t = if t > 0.0 { t.min(255.0) } else { 0.0 };
+    // Ceiling without a libm call: truncate (t ≥ 0), then step up when
+    // that fell short of the product ...
+    let mut q = t as i32;
+    q += i32::from((q as f32) < t);
+    // ... or when rounding of the product left `q / scale` short of `v`
+    // (false for NaN and v ≤ 0, where q = 0).
+    q += i32::from(((q as f32) / scale < v) & (q < 255));
+    q.min(255) as u8
 }
 
 /// `out(x, y) = max(in(x, y), in(x + s, y), in(x, y + s), in(x + s, y + s))`
@@ -163,23 +195,51 @@ fn dilate(values: &[u8], width: usize, height: usize, s: usize) -> Vec<u8> {
     let mut out = vec![0u8; values.len()];
     for (src, dst) in values.chunks_exact(width).zip(out.chunks_exact_mut(width)) {
         let split = width.saturating_sub(s);
-        for ((d, a), b) in dst[..split].iter_mut().zip(src).zip(&src[s..]) {
-            *d = (*a).max(*b);
-        }
+        max_of(&mut dst[..split], &src[..split], &src[s..]);
         dst[split..].copy_from_slice(&src[split..]);
     }
     // In place, top down: row y + s is still the row pass's when row y
     // reads it.
     for y in 0..height.saturating_sub(s) {
         let (head, tail) = out.split_at_mut((y + s) * width);
-        for (d, b) in head[y * width..(y + 1) * width]
-            .iter_mut()
-            .zip(&tail[..width])
-        {
-            *d = (*d).max(*b);
+        let row = &mut head[y * width..(y + 1) * width];
+        let below = &tail[..width];
+        for (d, b) in row.chunks_mut(LANES).zip(below.chunks(LANES)) {
+            for (d, b) in d.iter_mut().zip(b) {
+                *d = (*d).max(*b);
+            }
         }
     }
     out
+}
+
+/// Bytes per step of the max loops: fixed-size chunks let the compiler
+/// emit vector maxima without aliasing or length checks inside.
+const LANES: usize = 32;
+
+/// `dst[i] = max(a[i], b[i])` over `dst.len()` bytes (`a`, `b` at least as
+/// long).
+fn max_of(dst: &mut [u8], a: &[u8], b: &[u8]) {
+    let n = dst.len();
+    let (a, b) = (&a[..n], &b[..n]);
+    let mut d_chunks = dst.chunks_exact_mut(LANES);
+    let mut a_chunks = a.chunks_exact(LANES);
+    let mut b_chunks = b.chunks_exact(LANES);
+    for ((d, a), b) in (&mut d_chunks).zip(&mut a_chunks).zip(&mut b_chunks) {
+        let (a, b): (&[u8; LANES], &[u8; LANES]) =
+            (a.try_into().expect("chunk"), b.try_into().expect("chunk"));
+        for k in 0..LANES {
+            d[k] = a[k].max(b[k]);
+        }
+    }
+    let tail = d_chunks.into_remainder();
+    for ((d, a), b) in tail
+        .iter_mut()
+        .zip(a_chunks.remainder())
+        .zip(b_chunks.remainder())
+    {
+        *d = (*a).max(*b);
+    }
 }
 
 #[cfg(test)]

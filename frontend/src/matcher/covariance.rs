@@ -30,50 +30,76 @@ pub struct SurfaceFit {
     /// RMS residual of the quadratic fit relative to the score's range over
     /// the lattice (0 = perfectly quadratic).
     pub relative_fit_residual: f64,
+    /// The fitted quadratic's peak relative to the lattice centre, `(x m,
+    /// y m, θ rad)` (added to the pose's vector form): the Newton step
+    /// `-H⁻¹ g` over the directions the surface constrains (information
+    /// above the window clamp), zero along the others, shortened to stay
+    /// within one lattice step per axis.
+    pub peak_offset: Vector3<f64>,
 }
 
 /// Fits the quadratic around `pose` and derives the covariance.
 ///
-/// `steps` are the lattice steps `(m, m, rad)` and `radius` the lattice's
-/// half-size in steps (2 for the covariance: 5 x 5 x 5 samples); `window`
+/// The lattice steps are one raster cell in x and y and `angle_step_rad`
+/// in θ, and `radius` the lattice's half-size in steps (2 for the
+/// covariance: 5 x 5 x 5 samples, at most
+/// [`MAX_SHIFT_RADIUS`](crate::image::grid::MAX_SHIFT_RADIUS)); `window`
 /// the search half-widths `(m, m, rad)` that bound the variance; `tau` the
-/// scale.
+/// scale. Because the translation steps are whole cells, the scores of one
+/// angle share every point's fractional cell position
+/// ([`Grid::add_bilinear_shifts`](crate::image::Grid::add_bilinear_shifts)).
 pub fn fit_surface(
     points: &[Point2<f64>],
     image: &AcousticImage,
     pose: &Se2,
-    steps: &Vector3<f64>,
-    radius: i32,
+    angle_step_rad: f64,
+    radius: usize,
     window: &Vector3<f64>,
     tau: f64,
 ) -> SurfaceFit {
+    let grid = image.grid();
+    let cell_m = grid.cell_size_m();
+    let steps = Vector3::new(cell_m, cell_m, angle_step_rad);
     let mut normal = SMatrix::<f64, 10, 10>::zeros();
     let mut rhs = SVector::<f64, 10>::zeros();
-    let mut samples = Vec::with_capacity(125);
-    let radius = radius.max(1);
-    for a in -radius..=radius {
-        for b in -radius..=radius {
-            for c in -radius..=radius {
+    let (mut inner_normal, mut inner_rhs) = (normal, rhs);
+    let radius = radius.clamp(1, crate::image::grid::MAX_SHIFT_RADIUS);
+    let n = 2 * radius + 1;
+    let r = radius as i32;
+    let mut samples = Vec::with_capacity(n * n * n);
+    let mut sums = vec![0.0; n * n];
+    for c in -r..=r {
+        let (sin, cos) = (pose.theta() + f64::from(c) * angle_step_rad).sin_cos();
+        sums.fill(0.0);
+        for p in points {
+            let x = cos * p.x - sin * p.y + pose.x();
+            let y = sin * p.x + cos * p.y + pose.y();
+            grid.add_bilinear_shifts(x, y, radius, &mut sums);
+        }
+        for b in -r..=r {
+            for a in -r..=r {
+                let s = sums[(b + r) as usize * n + (a + r) as usize];
                 let u = Vector3::new(f64::from(a), f64::from(b), f64::from(c));
-                let delta = u.component_mul(steps);
-                let p = Se2::new(
-                    pose.x() + delta.x,
-                    pose.y() + delta.y,
-                    pose.theta() + delta.z,
-                );
-                let s = super::raster_score(points, image, &p);
                 let phi = features(&u);
                 normal += phi * phi.transpose();
                 rhs += phi * s;
+                if a.abs() <= 1 && b.abs() <= 1 && c.abs() <= 1 {
+                    inner_normal += phi * phi.transpose();
+                    inner_rhs += phi * s;
+                }
                 samples.push((phi, s));
             }
         }
     }
     // The lattice is symmetric and full, so the normal matrix is invertible.
-    let beta = normal
-        .cholesky()
-        .map(|ch| ch.solve(&rhs))
-        .unwrap_or_else(SVector::zeros);
+    let solve = |normal: SMatrix<f64, 10, 10>, rhs: SVector<f64, 10>| {
+        normal
+            .cholesky()
+            .map(|ch| ch.solve(&rhs))
+            .unwrap_or_else(SVector::zeros)
+    };
+    let beta = solve(normal, rhs);
+    let inner = solve(inner_normal, inner_rhs);
     let (mut lo, mut hi, mut sq) = (f64::MAX, f64::MIN, 0.0);
     for (phi, s) in &samples {
         let r = s - phi.dot(&beta);
@@ -87,7 +113,46 @@ pub fn fit_surface(
         0.0
     };
     // Hessian in normalised coordinates: s = ... + β4 u1² + ... + β7 u1u2 ...
-    let hn = Matrix3::new(
+    let hn = hessian_n(&beta);
+    let scale = Matrix3::from_diagonal(&steps.map(|s| 1.0 / s));
+    let hessian = scale * hn * scale;
+    // Information in normalised coordinates, eigenvalues clamped so that
+    // no direction has a variance larger than the window.
+    let window_n = window.component_div(&steps).max();
+    let min_information = 1.0 / (window_n * window_n);
+    let info = -hn / tau;
+    let eig = info.symmetric_eigen();
+    let inv_values = eig.eigenvalues.map(|l| 1.0 / l.max(min_information));
+    let cov_n =
+        eig.eigenvectors * Matrix3::from_diagonal(&inv_values) * eig.eigenvectors.transpose();
+    let step_diag = Matrix3::from_diagonal(&steps);
+    let covariance = step_diag * cov_n * step_diag;
+    // Peak: u* = (-H)⁻¹ g in normalised coordinates, on the constrained
+    // eigen-directions only (-H = τ · info).
+    let gradient_n = Vector3::new(inner[1], inner[2], inner[3]);
+    let inner_eig = (-hessian_n(&inner)).symmetric_eigen();
+    let mut peak_n = Vector3::zeros();
+    for (i, &l) in inner_eig.eigenvalues.iter().enumerate() {
+        if l / tau > min_information {
+            let v = inner_eig.eigenvectors.column(i);
+            peak_n += v * (v.dot(&gradient_n) / l);
+        }
+    }
+    let reach = peak_n.amax();
+    if reach > 1.0 {
+        peak_n /= reach;
+    }
+    SurfaceFit {
+        hessian,
+        covariance: 0.5 * (covariance + covariance.transpose()),
+        relative_fit_residual,
+        peak_offset: peak_n.component_mul(&steps),
+    }
+}
+
+/// The Hessian of the fitted quadratic (coefficients as [`features`]).
+fn hessian_n(beta: &SVector<f64, 10>) -> Matrix3<f64> {
+    Matrix3::new(
         2.0 * beta[4],
         beta[7],
         beta[8],
@@ -97,25 +162,7 @@ pub fn fit_surface(
         beta[8],
         beta[9],
         2.0 * beta[6],
-    );
-    let scale = Matrix3::from_diagonal(&steps.map(|s| 1.0 / s));
-    let hessian = scale * hn * scale;
-    // Information in normalised coordinates, eigenvalues clamped so that
-    // no direction has a variance larger than the window.
-    let window_n = window.component_div(steps).max();
-    let min_information = 1.0 / (window_n * window_n);
-    let info = -hn / tau;
-    let eig = info.symmetric_eigen();
-    let inv_values = eig.eigenvalues.map(|l| 1.0 / l.max(min_information));
-    let cov_n =
-        eig.eigenvectors * Matrix3::from_diagonal(&inv_values) * eig.eigenvectors.transpose();
-    let step_diag = Matrix3::from_diagonal(steps);
-    let covariance = step_diag * cov_n * step_diag;
-    SurfaceFit {
-        hessian,
-        covariance: 0.5 * (covariance + covariance.transpose()),
-        relative_fit_residual,
-    }
+    )
 }
 
 /// `[1, u1, u2, u3, u1², u2², u3², u1u2, u1u3, u2u3]`.
@@ -163,11 +210,24 @@ mod tests {
         let pose = Se2::new(-0.05, -0.05, 0.0);
         let steps = Vector3::new(0.1, 0.1, 0.01);
         let window = Vector3::new(1.0, 1.0, 0.1);
-        let fit = fit_surface(&points, &image, &pose, &steps, 2, &window, 0.5);
+        let fit = fit_surface(&points, &image, &pose, steps.z, 2, &window, 0.5);
         assert!((fit.hessian[(0, 0)] + 1.0).abs() < 1e-4, "{}", fit.hessian);
         assert!((fit.hessian[(1, 1)] + 4.0).abs() < 1e-4, "{}", fit.hessian);
         assert!(fit.hessian[(0, 1)].abs() < 1e-4);
         assert!(fit.relative_fit_residual < 1e-6);
+        // The paraboloid's peak is at the origin, 0.05 m from the lattice
+        // centre on both axes; θ is unconstrained: no move.
+        assert!(
+            (fit.peak_offset.x - 0.05).abs() < 1e-6,
+            "{}",
+            fit.peak_offset
+        );
+        assert!(
+            (fit.peak_offset.y - 0.05).abs() < 1e-6,
+            "{}",
+            fit.peak_offset
+        );
+        assert!(fit.peak_offset.z.abs() < 1e-12, "{}", fit.peak_offset);
         // Σ = τ (-H)⁻¹ = 0.5 / 1 and 0.5 / 4 in x and y.
         assert!(
             (fit.covariance[(0, 0)] - 0.5).abs() < 1e-4,

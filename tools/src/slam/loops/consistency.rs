@@ -12,8 +12,9 @@
 //! motions' ([`DeadReckoningChain::relative`]); the loops are *consistent*
 //! when `vec(C)ᵀ Σ⁻¹ vec(C)` is at most `consistency_max_chi2`.
 //!
-//! The consistency graph (a petgraph `UnGraph`, one vertex per loop that
-//! passed its own checks) is searched for a **maximum clique**, the largest
+//! The consistency graph (one vertex per loop that passed its own checks,
+//! neighbours as bit sets: what the clique search works on, so no graph
+//! crate is used here) is searched for a **maximum clique**, the largest
 //! set of pairwise consistent loops, with the exact Bron-Kerbosch algorithm
 //! with Tomita pivoting and a size bound, on bit sets. Exponential in the
 //! worst case; after `MAX_CLIQUE_CALLS` recursive calls the search stops
@@ -24,7 +25,7 @@
 use crate::slam::uncertainty::{DriftModel, compose, invert, mahalanobis2};
 use echofield_graph::Se2;
 use nalgebra::Matrix3;
-use petgraph::graph::{NodeIndex, UnGraph};
+use std::collections::HashMap;
 
 /// Limit on the recursive calls of one clique search.
 pub const MAX_CLIQUE_CALLS: usize = 200_000;
@@ -125,10 +126,21 @@ pub fn cycle_chi2(a: &LoopMeasurement, b: &LoopMeasurement, chain: &DeadReckonin
     mahalanobis2(&c, &cov).unwrap_or(f64::INFINITY)
 }
 
-/// The consistency graph of the loops seen so far.
+/// The consistency graph of the loops seen so far, and its maximum clique
+/// as of the last search. Vertex `v` is the `v`-th loop added; its
+/// neighbours are kept as a bit set, so the clique search never rebuilds
+/// the graph.
 #[derive(Clone, Debug, Default)]
 pub struct ConsistencyGraph {
-    graph: UnGraph<LoopMeasurement, f64>,
+    measurements: Vec<LoopMeasurement>,
+    /// Vertex of each record id.
+    vertex_of: HashMap<usize, usize>,
+    /// `adjacency[v]`: the vertices consistent with `v`.
+    adjacency: Vec<BitSet>,
+    /// Vertex indices of the last maximum clique.
+    best: Vec<usize>,
+    /// Vertices added since the last search.
+    fresh: Vec<usize>,
 }
 
 /// The result of a clique search.
@@ -147,61 +159,91 @@ impl ConsistencyGraph {
     }
 
     pub fn len(&self) -> usize {
-        self.graph.node_count()
+        self.measurements.len()
     }
 
     pub fn is_empty(&self) -> bool {
-        self.graph.node_count() == 0
+        self.measurements.is_empty()
     }
 
     /// Adds a loop and its consistency edges to every loop already in.
     pub fn add(&mut self, loop_: LoopMeasurement, chain: &DeadReckoningChain, max_chi2: f64) {
-        let others: Vec<(NodeIndex, f64)> = self
-            .graph
-            .node_indices()
-            .map(|i| (i, cycle_chi2(&loop_, &self.graph[i], chain)))
+        let consistent: Vec<usize> = self
+            .measurements
+            .iter()
+            .enumerate()
+            .filter(|(_, other)| cycle_chi2(&loop_, other, chain) <= max_chi2)
+            .map(|(u, _)| u)
             .collect();
-        let index = self.graph.add_node(loop_);
-        for (other, chi2) in others {
-            if chi2 <= max_chi2 {
-                self.graph.add_edge(index, other, chi2);
+        self.push_vertex(loop_, &consistent);
+    }
+
+    /// Adds a vertex joined to `neighbours` (existing vertices).
+    fn push_vertex(&mut self, loop_: LoopMeasurement, neighbours: &[usize]) {
+        let v = self.measurements.len();
+        let words = (v + 1).div_ceil(64);
+        if words > v.div_ceil(64) {
+            for row in &mut self.adjacency {
+                row.0.resize(words, 0);
             }
         }
+        let mut row = BitSet::empty(words);
+        for &u in neighbours {
+            row.insert(u);
+            self.adjacency[u].insert(v);
+        }
+        self.adjacency.push(row);
+        self.vertex_of.insert(loop_.id, v);
+        self.measurements.push(loop_);
+        self.fresh.push(v);
     }
 
     /// The measurement of a vertex by record id.
     pub fn measurement(&self, id: usize) -> Option<&LoopMeasurement> {
-        self.graph.node_weights().find(|m| m.id == id)
+        self.vertex_of.get(&id).map(|&v| &self.measurements[v])
     }
 
-    /// The maximum clique (see the module doc).
-    pub fn max_clique(&self) -> Clique {
-        let n = self.graph.node_count();
+    /// The maximum clique (see the module doc), updated incrementally.
+    ///
+    /// The graph only grows, so the previous maximum clique is still a
+    /// clique, and a larger one must contain a vertex added since: the
+    /// search starts from the previous clique as the best so far and only
+    /// explores cliques through each new vertex (its neighbourhood), the
+    /// new vertices in insertion order. The first search is over the whole
+    /// graph. A clique of the same size as the previous one does not
+    /// replace it.
+    pub fn max_clique(&mut self) -> Clique {
+        let n = self.measurements.len();
         let words = n.div_ceil(64);
-        let mut adjacency = vec![BitSet::empty(words); n];
-        for edge in self.graph.raw_edges() {
-            let (a, b) = (edge.source().index(), edge.target().index());
-            adjacency[a].insert(b);
-            adjacency[b].insert(a);
-        }
+        let adjacency = &self.adjacency;
         let mut search = CliqueSearch {
-            adjacency: &adjacency,
-            best: Vec::new(),
+            adjacency,
+            best: std::mem::take(&mut self.best),
             calls: 0,
         };
-        let mut all = BitSet::empty(words);
-        (0..n).for_each(|i| all.insert(i));
-        search.expand(&mut Vec::new(), all, BitSet::empty(words));
-        let mut ids: Vec<usize> = search
-            .best
-            .iter()
-            .map(|&i| self.graph[NodeIndex::new(i)].id)
-            .collect();
-        ids.sort_unstable();
-        Clique {
-            ids,
-            exact: search.calls <= MAX_CLIQUE_CALLS,
+        let fresh = std::mem::take(&mut self.fresh);
+        if search.best.is_empty() {
+            let mut all = BitSet::empty(words);
+            (0..n).for_each(|i| all.insert(i));
+            search.expand(&mut Vec::new(), all, BitSet::empty(words));
+        } else {
+            // Cliques through an earlier new vertex were searched already:
+            // exclude them from the later ones' searches.
+            let mut excluded = BitSet::empty(words);
+            for &v in &fresh {
+                let mut candidates = adjacency[v].clone();
+                let mut x = adjacency[v].intersection(&excluded);
+                candidates = candidates.difference(&excluded);
+                x.remove(v);
+                search.expand(&mut vec![v], candidates, x);
+                excluded.insert(v);
+            }
         }
+        let exact = search.calls <= MAX_CLIQUE_CALLS;
+        self.best = search.best;
+        let mut ids: Vec<usize> = self.best.iter().map(|&v| self.measurements[v].id).collect();
+        ids.sort_unstable();
+        Clique { ids, exact }
     }
 }
 
@@ -232,7 +274,7 @@ impl CliqueSearch<'_> {
         let pivot = p
             .union(&x)
             .iter()
-            .max_by_key(|&u| (p.intersection(&self.adjacency[u]).count(), usize::MAX - u))
+            .max_by_key(|&u| (p.intersection_count(&self.adjacency[u]), usize::MAX - u))
             .expect("p is not empty");
         let branch: Vec<usize> = p.difference(&self.adjacency[pivot]).iter().collect();
         for v in branch {
@@ -284,6 +326,15 @@ impl BitSet {
         )
     }
 
+    /// `|self ∩ other|` without building the intersection.
+    fn intersection_count(&self, other: &BitSet) -> usize {
+        self.0
+            .iter()
+            .zip(&other.0)
+            .map(|(a, b)| (a & b).count_ones() as usize)
+            .sum()
+    }
+
     fn union(&self, other: &BitSet) -> BitSet {
         self.zip(other, |a, b| a | b)
     }
@@ -318,19 +369,28 @@ mod tests {
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 
+    fn measurement(id: usize) -> LoopMeasurement {
+        LoopMeasurement {
+            id,
+            from: 0,
+            to: 1,
+            z: Se2::identity(),
+            covariance: Matrix3::identity(),
+        }
+    }
+
     fn graph_with_edges(n: usize, edges: &[(usize, usize)]) -> ConsistencyGraph {
         let mut g = ConsistencyGraph::new();
-        for id in 0..n {
-            g.graph.add_node(LoopMeasurement {
-                id,
-                from: 0,
-                to: 1,
-                z: Se2::identity(),
-                covariance: Matrix3::identity(),
-            });
-        }
-        for &(a, b) in edges {
-            g.graph.add_edge(NodeIndex::new(a), NodeIndex::new(b), 0.0);
+        for v in 0..n {
+            let neighbours: Vec<usize> = edges
+                .iter()
+                .filter_map(|&(a, b)| match (a, b) {
+                    (a, b) if b == v && a < v => Some(a),
+                    (a, b) if a == v && b < v => Some(b),
+                    _ => None,
+                })
+                .collect();
+            g.push_vertex(measurement(v), &neighbours);
         }
         g
     }
@@ -386,6 +446,42 @@ mod tests {
             for (i, &a) in found.ids.iter().enumerate() {
                 for &b in &found.ids[i + 1..] {
                     assert!(edges.contains(&(a, b)) || edges.contains(&(b, a)));
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn incremental_search_finds_the_maximum_as_the_graph_grows() {
+        let mut rng = ChaCha8Rng::seed_from_u64(9);
+        for trial in 0..40 {
+            let n = rng.random_range(2..=12);
+            let density = rng.random_range(0.2..0.9);
+            let mut edges = Vec::new();
+            let mut g = ConsistencyGraph::new();
+            let mut previous = 0;
+            // Vertices arrive in batches of 1-3, a search after each batch.
+            let mut v = 0;
+            while v < n {
+                for _ in 0..rng.random_range(1..=3).min(n - v) {
+                    let neighbours: Vec<usize> =
+                        (0..v).filter(|_| rng.random_bool(density)).collect();
+                    edges.extend(neighbours.iter().map(|&u| (u, v)));
+                    g.push_vertex(measurement(v), &neighbours);
+                    v += 1;
+                }
+                let found = g.max_clique();
+                assert_eq!(
+                    found.ids.len(),
+                    brute_force(v, &edges),
+                    "trial {trial}, {v} vertices"
+                );
+                assert!(found.ids.len() >= previous);
+                previous = found.ids.len();
+                for (i, &a) in found.ids.iter().enumerate() {
+                    for &b in &found.ids[i + 1..] {
+                        assert!(edges.contains(&(a, b)) || edges.contains(&(b, a)));
+                    }
                 }
             }
         }
