@@ -115,6 +115,7 @@ fn report_json_has_the_issue_keys_and_writing_time() {
         "rpe",
         "loop_precision",
         "loop_recall",
+        "loop_recall_revisits",
     ] {
         assert!(v.get(key).is_some(), "report.json lacks `{key}`");
     }

@@ -103,8 +103,10 @@ fn marina_mission_is_five_times_better_than_dead_reckoning() {
 
     // Loops: many, nearly all within the true-positive tolerances (0.5 m,
     // 3 deg), none grossly wrong. Measured on seed 1: precision 0.993 (two
-    // loops 0.54-0.57 m off), recall 0.91 of the revisits; the issue's
-    // precision target 1.0 is not met.
+    // loops 0.51 m off along the direction their covariance leaves open),
+    // recall 0.33 of the overlapping node pairs and 0.90 of the revisits;
+    // the targets (precision 1.0, recall 0.9 of the pairs) are not
+    // met: each node is matched against at most 4 older ones.
     assert!(
         report.loops_accepted >= 150,
         "{} loops",
@@ -132,8 +134,16 @@ fn marina_mission_is_five_times_better_than_dead_reckoning() {
     let precision = 1.0 - wrong as f64 / report.loops_accepted as f64;
     assert!(precision >= 0.98, "precision {precision:.3}");
     assert!((report.loop_precision.unwrap() - precision).abs() < 1e-9);
+    let revisits = report.loop_recall_revisits.unwrap();
+    assert!(revisits >= 0.88, "revisit recall {revisits:.3}");
     let recall = report.loop_recall.unwrap();
-    assert!(recall >= 0.88, "recall {recall:.3}");
-    let pairs = report.loop_recall_pairs.unwrap();
-    assert!(pairs > 0.0 && pairs < recall, "pair recall {pairs:.3}");
+    assert!(recall >= 0.28 && recall < revisits, "recall {recall:.3}");
+    let counts = report.loop_evaluation.as_ref().unwrap();
+    assert!(
+        counts.recall_pairs > 800,
+        "{} recall pairs",
+        counts.recall_pairs
+    );
+    let ratio = counts.recalled_pairs as f64 / counts.recall_pairs as f64;
+    assert!((ratio - recall).abs() < 1e-12);
 }

@@ -30,7 +30,7 @@ fn st_pere_replay_is_within_a_metre_of_dgps() {
     let dead_reckoning = report.ate_dead_reckoning.as_ref().unwrap();
     assert_eq!(ate.pairs, report.nodes);
     assert!(ate.rmse_m <= 1.0, "ATE {:.3} m against DGPS", ate.rmse_m);
-    // Measured: 0.36 m against 3.8 m for dead reckoning.
+    // Measured: 0.27 m against 3.07 m for dead reckoning.
     assert!(
         ate.rmse_m < 0.2 * dead_reckoning.rmse_m,
         "{:.3} vs {:.3}",
@@ -42,11 +42,14 @@ fn st_pere_replay_is_within_a_metre_of_dgps() {
         "{} loops",
         report.loops_accepted
     );
-    // The real DVL has outliers: the dead-reckoning filter gates some.
-    // Loops: measured precision 0.98 (near misses 0.52-0.72 m off against
-    // the 0.5 m tolerance), recall 0.85 of the revisits.
+    // Loops: measured precision 0.987 (six near misses 0.50-0.78 m off
+    // against the 0.5 m tolerance, from rotations whose dead reckoning is
+    // uncertain by 0.5-1 m over the turn), recall 0.19 of the overlapping
+    // node pairs and 0.90 of the revisits.
     let precision = report.loop_precision.unwrap();
-    assert!(precision >= 0.96, "precision {precision:.3}");
+    assert!(precision >= 0.97, "precision {precision:.3}");
+    let revisits = report.loop_recall_revisits.unwrap();
+    assert!(revisits >= 0.85, "revisit recall {revisits:.3}");
     let recall = report.loop_recall.unwrap();
-    assert!(recall >= 0.8, "recall {recall:.3}");
+    assert!(recall >= 0.15 && recall < revisits, "recall {recall:.3}");
 }

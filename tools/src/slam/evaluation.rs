@@ -25,15 +25,17 @@
 //!   `recall_min_overlap` (default 0.4, the lowest overlap at which a
 //!   correctly registered pair passes the loop quality gate, see
 //!   [`super::config::EvaluationConfig`]), whether or not the pipeline
-//!   picked them as candidates. A **revisit** is a node `k` that is the newer node of at
-//!   least one recall pair: the vehicle is back where it has been.
-//! - **Recall** (`loop_recall`) = revisits `k` that are the newer node of
-//!   at least one accepted true-positive loop / revisits: how many of the
-//!   returns to a known place the pipeline recognised. Every node is only
-//!   matched against a few older ones (`loops.max_candidates_per_node`),
-//!   so the pair-level figure, `loop_recall_pairs` = recall pairs joined
-//!   by an accepted true-positive loop / recall pairs, is reported too; it
-//!   is much lower by construction (a revisit overlaps many older nodes).
+//!   picked them as candidates.
+//! - **Recall** (`loop_recall`) = recall pairs joined by an accepted
+//!   true-positive loop / recall pairs. The pipeline matches each node
+//!   against at most `loops.max_candidates_per_node` older ones, while a
+//!   return to a known place overlaps many older nodes, so this pair-level
+//!   figure stays well below 1 by design.
+//! - A **revisit** is a node `k` that is the newer node of at least one
+//!   recall pair: the vehicle is back where it has been. **Revisit
+//!   recall** (`loop_recall_revisits`) = revisits that are the newer node
+//!   of at least one accepted true-positive loop / revisits: how many of
+//!   the returns to a known place the pipeline recognised.
 
 use super::config::SlamConfig;
 use super::nodes::NodeData;
@@ -136,9 +138,9 @@ pub fn evaluate(
     } else {
         1.0
     });
-    report.loop_recall = (recall_nodes > 0).then(|| recalled_nodes as f64 / recall_nodes as f64);
-    report.loop_recall_pairs =
-        (recall_pairs > 0).then(|| recalled_pairs as f64 / recall_pairs as f64);
+    report.loop_recall = (recall_pairs > 0).then(|| recalled_pairs as f64 / recall_pairs as f64);
+    report.loop_recall_revisits =
+        (recall_nodes > 0).then(|| recalled_nodes as f64 / recall_nodes as f64);
     report.loop_evaluation = Some(LoopEvaluation {
         true_positives: tp,
         false_positives: fp,
@@ -274,8 +276,8 @@ fn definitions(config: &SlamConfig) -> BTreeMap<String, String> {
         ("loop_precision", "true positives / accepted loops (1 when no loop is accepted: no accepted loop is wrong; `loop_evaluation` then shows 0 true and 0 false positives)".to_string()),
         ("gt_overlap", format!("fraction of the points of S_k, placed in node j's frame with the ground-truth relative pose, that fall in a {0} m cell holding a point of S_j or next to one", e.overlap_distance_m)),
         ("recall_pair", format!("a node pair (j, k) with k - j >= {} and ground-truth scan overlap >= {} (below that overlap a correctly registered pair cannot reach the quality gate's mean intensity {})", config.loops.min_separation_nodes, e.recall_min_overlap, config.loops.min_mean_intensity)),
-        ("loop_recall", "revisit nodes (the newer node of at least one recall pair) that are the newer node of an accepted true-positive loop, over all revisit nodes: how many returns to a known place were recognised (each node is matched against at most loops.max_candidates_per_node older ones, so a pair-level figure cannot reach 1)".to_string()),
-        ("loop_recall_pairs", "recall pairs joined by an accepted true-positive loop, over all recall pairs (pair level; low by construction, reported for completeness)".to_string()),
+        ("loop_recall", format!("recall pairs joined by an accepted true-positive loop, over all recall pairs (each node is matched against at most {} older ones, so this stays well below 1)", config.loops.max_candidates_per_node)),
+        ("loop_recall_revisits", "revisit nodes (the newer node of at least one recall pair) that are the newer node of an accepted true-positive loop, over all revisit nodes: how many returns to a known place were recognised".to_string()),
     ];
     entries
         .into_iter()

@@ -189,7 +189,7 @@ fn run(
         rpe_dead_reckoning: None,
         loop_precision: None,
         loop_recall: None,
-        loop_recall_pairs: None,
+        loop_recall_revisits: None,
         loop_evaluation: None,
         definitions: BTreeMap::new(),
     };

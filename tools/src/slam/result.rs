@@ -345,13 +345,16 @@ pub struct Report {
     /// truth.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub loop_precision: Option<f64>,
-    /// Recognised revisit nodes / revisit nodes (see `definitions`).
+    /// Recall pairs joined by an accepted true-positive loop / recall
+    /// pairs: node pairs whose ground-truth scan overlap reaches
+    /// `evaluation.recall_min_overlap` (see `definitions`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub loop_recall: Option<f64>,
-    /// Recall pairs joined by an accepted true-positive loop / recall
-    /// pairs (see `definitions`).
+    /// Recognised revisit nodes / revisit nodes: the newer node of a recall
+    /// pair that is the newer node of an accepted true-positive loop (see
+    /// `definitions`).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub loop_recall_pairs: Option<f64>,
+    pub loop_recall_revisits: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub loop_evaluation: Option<LoopEvaluation>,
     /// How each evaluation number is defined, in words.

@@ -55,8 +55,13 @@ impl DemoSummary {
                 dr / ate.max(1e-9)
             ));
         }
-        if let (Some(p), Some(rc)) = (r.loop_precision, r.loop_recall) {
-            lines.push(format!("loop closures: precision {p:.2}, recall {rc:.2}"));
+        if let (Some(p), Some(rc), Some(rv)) =
+            (r.loop_precision, r.loop_recall, r.loop_recall_revisits)
+        {
+            lines.push(format!(
+                "loop closures: precision {p:.3}, recall {rc:.2} of the overlapping node pairs, \
+                 {rv:.2} of the revisits"
+            ));
         }
         let d = self.dir.display();
         lines.push(format!(
