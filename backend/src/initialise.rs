@@ -180,22 +180,28 @@ impl Term {
         rhs: &mut [f64],
     ) {
         let mut c = self.constant;
-        let mut free = Vec::with_capacity(2);
+        // At most two free nodes: a fixed-size list, no allocation per edge.
+        let mut slots = [(0, Matrix2::zeros()); 2];
+        let mut count = 0;
         for (node, m) in std::iter::once(self.first).chain(self.second) {
             match problem.variable_of[node] {
-                Some(v) => free.push((v, m)),
+                Some(v) => {
+                    slots[count] = (v, m);
+                    count += 1;
+                }
                 None => c += m * known(node),
             }
         }
+        let free = &slots[..count];
         let wc = weight * c;
-        for &(v, m) in &free {
+        for &(v, m) in free {
             let g = m.transpose() * wc;
             rhs[2 * v] -= g.x;
             rhs[2 * v + 1] -= g.y;
             let slot = system.slot(v, v).expect("diagonal is stored");
             system.add(slot, &(m.transpose() * weight * m));
         }
-        if let [(va, ma), (vb, mb)] = free[..] {
+        if let [(va, ma), (vb, mb)] = *free {
             let slot = system.slot(va, vb).expect("edge blocks are in the pattern");
             system.add(slot, &(ma.transpose() * weight * mb));
         }
