@@ -55,10 +55,11 @@ pub struct SlamConfig {
 
 impl Default for SlamConfig {
     /// The frontend's and backend's own defaults, except for the matcher:
-    /// no L-BFGS refinement (`refine_iterations = 0`: the quadratic fit of
-    /// the score surface already gives the sub-cell peak, and the
-    /// refinement costs about 2 ms per match for no measurable gain in the
-    /// pipeline) and no second-peak search (`second_peak = false`: on the
+    /// no Nelder-Mead refinement (`refine_iterations = 0`: the peak of the
+    /// quadratic fitted to the score surface gives the sub-cell pose
+    /// instead; on the marina's matcher evaluation that is as successful
+    /// and 1.5 ms cheaper per match, with a median error of 0.12 m against
+    /// 0.10 m) and no second-peak search (`second_peak = false`: on the
     /// simulated missions the ratio did not separate right from wrong
     /// loop matches, and the second search doubles the cost).
     fn default() -> Self {
