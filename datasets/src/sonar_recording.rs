@@ -169,6 +169,17 @@ mod tests {
         }
     }
 
+    /// A recording of `beams` from a file `x.bin`.
+    fn recording(beams: Vec<SonarBeam>) -> SonarRecording {
+        SonarRecording {
+            path: PathBuf::from("x.bin"),
+            device: String::new(),
+            info: Vec::new(),
+            beams,
+            stats: ReadStats::default(),
+        }
+    }
+
     #[test]
     fn segments_split_on_bin_size_or_count_and_sum_the_sweep() {
         let mut beams: Vec<_> = (0..5)
@@ -176,13 +187,7 @@ mod tests {
             .collect();
         beams.push(beam(0.0, 0.2, 10));
         beams.push(beam(0.1, 0.2, 20));
-        let rec = SonarRecording {
-            path: PathBuf::from("x.bin"),
-            device: String::new(),
-            info: Vec::new(),
-            beams,
-            stats: ReadStats::default(),
-        };
+        let rec = recording(beams);
         let segs = rec.range_segments();
         assert_eq!(segs.len(), 3);
         assert_eq!((segs[0].first_beam, segs[0].beam_count), (0, 5));
@@ -205,13 +210,7 @@ mod tests {
             .map(|&a| beam(a, 0.1, 10))
             .collect();
         beams[4].bin_size_m = 0.2;
-        let rec = SonarRecording {
-            path: PathBuf::from("x.bin"),
-            device: String::new(),
-            info: Vec::new(),
-            beams,
-            stats: ReadStats::default(),
-        };
+        let rec = recording(beams);
         assert_eq!(rec.repeated_angles(), vec![2]);
     }
 }

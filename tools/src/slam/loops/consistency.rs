@@ -411,6 +411,18 @@ mod tests {
             .unwrap_or(0)
     }
 
+    /// Every two of `ids` are joined by one of `edges`.
+    fn assert_is_clique(ids: &[usize], edges: &[(usize, usize)]) {
+        for (i, &a) in ids.iter().enumerate() {
+            for &b in &ids[i + 1..] {
+                assert!(
+                    edges.contains(&(a, b)) || edges.contains(&(b, a)),
+                    "{a} - {b}"
+                );
+            }
+        }
+    }
+
     #[test]
     fn finds_the_planted_clique() {
         // A 5-clique {1, 3, 4, 7, 8} among a triangle and a path.
@@ -442,12 +454,7 @@ mod tests {
             }
             let found = graph_with_edges(n, &edges).max_clique();
             assert_eq!(found.ids.len(), brute_force(n, &edges), "trial {trial}");
-            // And it is a clique.
-            for (i, &a) in found.ids.iter().enumerate() {
-                for &b in &found.ids[i + 1..] {
-                    assert!(edges.contains(&(a, b)) || edges.contains(&(b, a)));
-                }
-            }
+            assert_is_clique(&found.ids, &edges);
         }
     }
 
@@ -478,11 +485,7 @@ mod tests {
                 );
                 assert!(found.ids.len() >= previous);
                 previous = found.ids.len();
-                for (i, &a) in found.ids.iter().enumerate() {
-                    for &b in &found.ids[i + 1..] {
-                        assert!(edges.contains(&(a, b)) || edges.contains(&(b, a)));
-                    }
-                }
+                assert_is_clique(&found.ids, &edges);
             }
         }
     }
