@@ -112,22 +112,27 @@ fn covering_grid(lines: &[BeamLine], cell_m: f64) -> Result<Grid, FrontendError>
 
 /// How samples falling into one cell are combined.
 trait Accumulator {
-    /// A sample of value `v` at fractional position `(fx, fy)` in cell `idx`.
-    fn put(&mut self, idx: usize, fx: f32, fy: f32, v: f32);
+    /// A sample of value `v` in cell `idx`, at the fractional position
+    /// `(fx, fy) / 2³²` within it.
+    fn put(&mut self, idx: usize, fx: u32, fy: u32, v: f32);
 }
 
-/// Keeps the sample closest to the cell centre. The squared distance and
-/// the value are packed into one `u64` key (non-negative `f32` bits order
-/// like the numbers), so keeping the closest is a branch-free `min`.
+/// Keeps the sample closest to the cell centre. The squared distance (in
+/// units of 2⁻³² cells², integer arithmetic on the fixed-point fractions)
+/// and the value are packed into one `u64` key (non-negative `f32` bits
+/// order like the numbers), so keeping the closest is a branch-free `min`.
 struct ClosestSample {
     best: Vec<u64>,
 }
 
 impl Accumulator for ClosestSample {
     #[inline]
-    fn put(&mut self, idx: usize, fx: f32, fy: f32, v: f32) {
-        let d2 = (fx - 0.5) * (fx - 0.5) + (fy - 0.5) * (fy - 0.5);
-        let key = (u64::from(d2.to_bits()) << 32) | u64::from(v.to_bits());
+    fn put(&mut self, idx: usize, fx: u32, fy: u32, v: f32) {
+        // Offsets from the centre, |d| ≤ 2³¹: d² + d² < 2⁶³ fits, and the
+        // top 32 bits of the sum order the distances.
+        let (dx, dy) = (i64::from(fx) - HALF_CELL, i64::from(fy) - HALF_CELL);
+        let d2 = ((dx * dx + dy * dy) as u64) >> 32;
+        let key = (d2 << 32) | u64::from(v.to_bits());
         let slot = &mut self.best[idx];
         *slot = (*slot).min(key);
     }
@@ -141,7 +146,7 @@ struct MeanSample {
 
 impl Accumulator for MeanSample {
     #[inline]
-    fn put(&mut self, idx: usize, _fx: f32, _fy: f32, v: f32) {
+    fn put(&mut self, idx: usize, _fx: u32, _fy: u32, v: f32) {
         let slot = &mut self.sum_count[idx];
         slot[0] += v;
         slot[1] += 1.0;
@@ -358,8 +363,7 @@ impl Painter {
                     let (ix, iy) = ((x >> 32) as u64, (y >> 32) as u64);
                     if ix < w && iy < h {
                         let idx = iy as usize * self.width + ix as usize;
-                        let fx = (x as u32) as f32 * FIXED_TO_UNIT;
-                        let fy = (y as u32) as f32 * FIXED_TO_UNIT;
+                        let (fx, fy) = (x as u32, y as u32);
                         let v = if job.sub == 1 {
                             values[t]
                         } else {
@@ -436,7 +440,8 @@ impl Painter {
 
 /// Scale of the 32.32 fixed-point sample positions.
 const FIXED_ONE: f64 = 4_294_967_296.0;
-const FIXED_TO_UNIT: f32 = 1.0 / 4_294_967_296.0;
+/// Half a cell in the fixed-point fraction.
+const HALF_CELL: i64 = 1 << 31;
 
 /// A position in cells as 32.32 fixed point (positions far outside any
 /// grid saturate, which keeps them outside).
