@@ -32,8 +32,12 @@
 //! 55.7 min; ±5° off gives 9-12 m mean, no offset 37 m mean / 88 m max. In the
 //! compass convention (clockwise from north) this is the "about −20°" of the
 //! logs' README. The DVL's own compass reads 25.3° more than the MTi yaw (in
-//! this convention), so it would need about −5.9°. Apply the offset with
-//! [`StPereLogs::apply_yaw_offset`] or as a heading bias in the SLAM config.
+//! this convention), so it would need about −5.9°. [`read_stpere_dir`]
+//! stores this calibration as the mission's
+//! `mounting.heading_offset_rad`, which dead reckoning adds to every yaw;
+//! the attitude stream stays as logged. [`StPereLogs::apply_yaw_offset`]
+//! instead bakes an offset into the attitude samples: set the mounting's
+//! offset to 0 then, or the heading is corrected twice.
 //!
 //! # Bad input
 //! Wrong column counts, non-numeric or non-finite values and time going
@@ -52,7 +56,10 @@
 //! let mut logs = read_stpere_dir(&dir)?;
 //! let dr = dead_reckoning_error(&logs.mission, MARINA_YAW_OFFSET_RAD).unwrap();
 //! assert!(dr.mean_m < 5.0);
-//! logs.apply_yaw_offset(MARINA_YAW_OFFSET_RAD); // attitude now matches DGPS
+//! assert_eq!(logs.mission.mounting.heading_offset_rad, MARINA_YAW_OFFSET_RAD);
+//! // Or bake the calibration into the attitude stream instead:
+//! logs.apply_yaw_offset(MARINA_YAW_OFFSET_RAD);
+//! logs.mission.mounting.heading_offset_rad = 0.0;
 //! # Ok::<(), echofield_datasets::DatasetError>(())
 //! ```
 

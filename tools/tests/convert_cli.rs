@@ -2,6 +2,7 @@
 //! writes reads back with every record.
 
 use echofield_datasets::mcap::read_mission;
+use echofield_datasets::stpere::read_stpere_dir;
 use std::path::PathBuf;
 use std::process::Command;
 
@@ -19,25 +20,27 @@ fn convert(args: &[&str]) -> std::process::Output {
         .unwrap()
 }
 
-#[test]
-fn stpere_folder_to_mcap_with_the_recommended_offset() {
+/// Converts the committed St Pere logs with `extra` arguments and reads the
+/// mission back.
+fn convert_stpere(extra: &[&str]) -> echofield_frontend::Mission {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("marina.mcap");
     let input = data("stpere-marina");
-    let run = convert(&[
-        "stpere",
-        input.to_str().unwrap(),
-        "--yaw-offset-deg",
-        "19.4",
-        "--output",
-        out.to_str().unwrap(),
-    ]);
+    let mut args = vec!["stpere", input.to_str().unwrap()];
+    args.extend_from_slice(extra);
+    args.extend_from_slice(&["--output", out.to_str().unwrap()]);
+    let run = convert(&args);
     assert!(
         run.status.success(),
         "{}",
         String::from_utf8_lossy(&run.stderr)
     );
-    let mission = read_mission(&out).unwrap();
+    read_mission(&out).unwrap()
+}
+
+#[test]
+fn stpere_folder_to_mcap_keeps_the_heading_calibration_in_the_mounting() {
+    let mission = convert_stpere(&[]);
     assert_eq!(mission.name, "040825_1735");
     assert_eq!(
         (
@@ -47,8 +50,29 @@ fn stpere_folder_to_mcap_with_the_recommended_offset() {
         ),
         (5045, 33457, 3342)
     );
-    // MTi line 7: heading -126.276 deg is yaw -143.724 deg; +19.4 deg.
-    assert!((mission.attitude[0].yaw_rad.to_degrees() - (-143.724 + 19.4)).abs() < 1e-6);
+    // MTi line 7: heading -126.276 deg is yaw -143.724 deg, written as
+    // logged; the +19.4 deg calibration is the mounting's heading offset,
+    // which dead reckoning adds once.
+    assert!((mission.attitude[0].yaw_rad.to_degrees() - (-143.724)).abs() < 1e-6);
+    assert!((mission.mounting.heading_offset_rad.to_degrees() - 19.4).abs() < 1e-9);
+    // The same mission as the reader gives, calibration included.
+    let logs = read_stpere_dir(&data("stpere-marina")).unwrap();
+    assert_eq!(mission.mounting, logs.mission.mounting);
+}
+
+#[test]
+fn stpere_yaw_offset_replaces_the_calibration_instead_of_adding_to_it() {
+    // Regression: `--yaw-offset-deg 19.4` used to be added to the attitude
+    // on top of the mounting's +19.4 deg, correcting the heading twice.
+    for (arg, expected_deg) in [("19.4", 19.4), ("0", 0.0), ("-5.5", -5.5)] {
+        let mission = convert_stpere(&["--yaw-offset-deg", arg]);
+        assert!((mission.attitude[0].yaw_rad.to_degrees() - (-143.724)).abs() < 1e-6);
+        let offset_deg = mission.mounting.heading_offset_rad.to_degrees();
+        assert!(
+            (offset_deg - expected_deg).abs() < 1e-9,
+            "{arg}: {offset_deg}"
+        );
+    }
 }
 
 #[test]

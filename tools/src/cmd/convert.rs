@@ -6,6 +6,7 @@ use echofield_datasets::miniking::read_miniking_bag;
 use echofield_datasets::ping360::read_ping360;
 use echofield_datasets::sonar_recording::SonarRecording;
 use echofield_datasets::stpere::{MARINA_YAW_OFFSET_RAD, read_stpere_dir};
+use echofield_graph::wrap_angle;
 use std::path::{Path, PathBuf};
 
 #[derive(Debug, clap::Subcommand)]
@@ -24,9 +25,11 @@ pub enum Args {
 
 const STPERE_EXAMPLES: &str = "\
 Examples:
+  # The heading calibration fitted against DGPS on the marina (+19.4 deg)
+  # goes into the mission's mounting; the MTi yaw is written as logged:
   echofield convert stpere datasets/stpere-marina --output marina.mcap
-  # Correct the MTi heading with the offset measured against DGPS (+19.4 deg):
-  echofield convert stpere datasets/stpere-marina --yaw-offset-deg 19.4 --output marina.mcap
+  # Another calibration (0: use the MTi yaw as the heading):
+  echofield convert stpere datasets/stpere-marina --yaw-offset-deg 0 --output raw.mcap
 
 Frames: world x east / y north about the first DGPS fix; vehicle x forward,
 y port; yaw counter-clockwise from east (see datasets/stpere-marina/README.md).";
@@ -52,9 +55,11 @@ pub struct StPereArgs {
     /// Output MCAP file (written atomically).
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Degrees added to every MTi yaw (counter-clockwise positive). 0 keeps the
-    /// attitude as recorded; the marina mission needs +19.4.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    /// Heading calibration in degrees (counter-clockwise positive) that
+    /// dead reckoning adds to every MTi yaw, stored as the mission's
+    /// `mounting.heading_offset_rad`; the attitude itself is written as
+    /// logged. Default: +19.4, fitted against DGPS on the marina mission.
+    #[arg(long, default_value_t = MARINA_YAW_OFFSET_RAD.to_degrees(), allow_negative_numbers = true)]
     pub yaw_offset_deg: f64,
 }
 
@@ -82,9 +87,10 @@ fn stpere(args: &StPereArgs) -> Result<()> {
     );
     let mut logs = read_stpere_dir(&args.dir)
         .with_context(|| format!("cannot read the St Pere logs in {}", args.dir.display()))?;
-    if args.yaw_offset_deg != 0.0 {
-        logs.apply_yaw_offset(args.yaw_offset_deg.to_radians());
-    }
+    // The reader puts the marina calibration into the mounting; the
+    // option replaces it there (adding it to the attitude as well would
+    // correct the heading twice).
+    logs.mission.mounting.heading_offset_rad = wrap_angle(args.yaw_offset_deg.to_radians());
     for skip in &logs.skipped {
         tracing::warn!(
             "skipped {}:{}: {:?}",
@@ -98,14 +104,14 @@ fn stpere(args: &StPereArgs) -> Result<()> {
     let valid = m.dvl.iter().filter(|d| d.valid).count();
     println!(
         "wrote {}: {} beams, {} DVL ({} valid), {} attitude, {} ground-truth poses; \
-         yaw offset {:+.2} deg (recommended for the marina: {:+.1})",
+         heading offset {:+.2} deg in the mounting (the marina's calibration: {:+.1})",
         args.output.display(),
         m.beams.len(),
         m.dvl.len(),
         valid,
         m.attitude.len(),
         m.ground_truth.len(),
-        logs.applied_yaw_offset_rad.to_degrees(),
+        m.mounting.heading_offset_rad.to_degrees(),
         MARINA_YAW_OFFSET_RAD.to_degrees()
     );
     if m.beams.is_empty() {
