@@ -128,10 +128,11 @@ struct ClosestSample {
 impl Accumulator for ClosestSample {
     #[inline]
     fn put(&mut self, idx: usize, fx: u32, fy: u32, v: f32) {
-        // Offsets from the centre, |d| ≤ 2³¹: d² + d² < 2⁶³ fits, and the
-        // top 32 bits of the sum order the distances.
-        let (dx, dy) = (i64::from(fx) - HALF_CELL, i64::from(fy) - HALF_CELL);
-        let d2 = ((dx * dx + dy * dy) as u64) >> 32;
+        // Offsets from the centre, |d| ≤ 2³¹: d² + d² ≤ 2⁶³ fits a u64,
+        // and the top 32 bits of the sum order the distances.
+        let dx = (i64::from(fx) - HALF_CELL).unsigned_abs();
+        let dy = (i64::from(fy) - HALF_CELL).unsigned_abs();
+        let d2 = (dx * dx + dy * dy) >> 32;
         let key = (d2 << 32) | u64::from(v.to_bits());
         let slot = &mut self.best[idx];
         *slot = (*slot).min(key);
@@ -564,6 +565,20 @@ mod tests {
                 assert_eq!(grid.cell(ix, iy), 0.0, "{interpolation:?} at 5.5 m");
             }
         }
+    }
+
+    #[test]
+    fn closest_sample_keys_handle_the_cell_corners() {
+        // Regression: at a fraction of 0 on both axes the squared offset
+        // sum is 2^63, which overflowed an i64.
+        let mut acc = ClosestSample {
+            best: vec![u64::MAX; 1],
+        };
+        acc.put(0, 0, 0, 0.25); // a corner: the farthest a sample can be
+        acc.put(0, u32::MAX, u32::MAX, 0.5); // the opposite corner
+        assert_eq!(f32::from_bits(acc.best[0] as u32), 0.5);
+        acc.put(0, 1 << 31, 1 << 31, 0.75); // the centre wins
+        assert_eq!(f32::from_bits(acc.best[0] as u32), 0.75);
     }
 
     #[test]
