@@ -128,11 +128,12 @@ struct ClosestSample {
 impl Accumulator for ClosestSample {
     #[inline]
     fn put(&mut self, idx: usize, fx: u32, fy: u32, v: f32) {
-        // Offsets from the centre, |d| ≤ 2³¹: d² + d² ≤ 2⁶³ fits a u64,
-        // and the top 32 bits of the sum order the distances.
-        let dx = (i64::from(fx) - HALF_CELL).unsigned_abs();
-        let dy = (i64::from(fy) - HALF_CELL).unsigned_abs();
-        let d2 = (dx * dx + dy * dy) >> 32;
+        // Offsets from the centre on 31-bit fractions, |d| ≤ 2³⁰: the sum
+        // of squares is at most 2⁶¹ (no overflow), and its top bits order
+        // the distances.
+        let dx = i64::from(fx >> 1) - HALF_CELL;
+        let dy = i64::from(fy >> 1) - HALF_CELL;
+        let d2 = ((dx * dx + dy * dy) >> 30) as u64;
         let key = (d2 << 32) | u64::from(v.to_bits());
         let slot = &mut self.best[idx];
         *slot = (*slot).min(key);
@@ -441,8 +442,8 @@ impl Painter {
 
 /// Scale of the 32.32 fixed-point sample positions.
 const FIXED_ONE: f64 = 4_294_967_296.0;
-/// Half a cell in the fixed-point fraction.
-const HALF_CELL: i64 = 1 << 31;
+/// Half a cell in 31-bit fractions.
+const HALF_CELL: i64 = 1 << 30;
 
 /// A position in cells as 32.32 fixed point (positions far outside any
 /// grid saturate, which keeps them outside).
