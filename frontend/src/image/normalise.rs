@@ -63,34 +63,26 @@ fn first_unmasked_bin(beam: &SonarBeam, blind_zone_m: f64) -> usize {
 
 /// Applies steps 1-3 of the module doc to every beam.
 pub fn normalise_beams(beams: &[SonarBeam], config: &ImageConfig) -> Profiles {
-    let kept: Vec<usize> = beams
-        .iter()
-        .map(|b| kept_bins(b, config.max_range_m))
-        .collect();
-    let masked: Vec<usize> = beams
-        .iter()
-        .zip(&kept)
-        .map(|(b, &n)| first_unmasked_bin(b, config.blind_zone_m).min(n))
-        .collect();
-    let smoothed: Vec<Vec<u8>> = if config.range_smoothing_bins > 1 {
-        beams
-            .iter()
-            .map(|b| moving_average(&b.intensities, config.range_smoothing_bins))
-            .collect()
-    } else {
-        Vec::new()
-    };
-    let raw = |j: usize, i: usize| -> u8 {
-        if i < masked[j] {
-            0
-        } else if smoothed.is_empty() {
-            beams[j].intensities[i]
+    // Steps 0-1: the smoothed, masked raw values of every kept bin, flat.
+    let mut offsets = Vec::with_capacity(beams.len() + 1);
+    offsets.push(0);
+    let total: usize = beams.iter().map(|b| kept_bins(b, config.max_range_m)).sum();
+    let mut raw: Vec<u8> = Vec::with_capacity(total);
+    for beam in beams {
+        let n = kept_bins(beam, config.max_range_m);
+        let start = raw.len();
+        if config.range_smoothing_bins > 1 {
+            moving_average_into(&beam.intensities, config.range_smoothing_bins, n, &mut raw);
         } else {
-            smoothed[j][i]
+            raw.extend_from_slice(&beam.intensities[..n]);
         }
-    };
+        let masked = first_unmasked_bin(beam, config.blind_zone_m).min(n);
+        raw[start..start + masked].fill(0);
+        offsets.push(raw.len());
+    }
+    let lengths: Vec<usize> = offsets.windows(2).map(|w| w[1] - w[0]).collect();
 
-    let max_bins = kept.iter().copied().max().unwrap_or(0);
+    let max_bins = lengths.iter().copied().max().unwrap_or(0);
     let background: Vec<u8> = match config.background_quantile {
         q if q <= 0.0 => vec![0; max_bins],
         q => {
@@ -99,9 +91,11 @@ pub fn normalise_beams(beams: &[SonarBeam], config: &ImageConfig) -> Profiles {
                 .map(|i| {
                     hist.fill(0);
                     let mut count = 0u32;
-                    for j in (0..beams.len()).filter(|&j| kept[j] > i) {
-                        hist[usize::from(raw(j, i))] += 1;
-                        count += 1;
+                    for (&start, &n) in offsets.iter().zip(&lengths) {
+                        if n > i {
+                            hist[usize::from(raw[start + i])] += 1;
+                            count += 1;
+                        }
                     }
                     histogram_quantile(&hist, count, q)
                 })
@@ -109,18 +103,16 @@ pub fn normalise_beams(beams: &[SonarBeam], config: &ImageConfig) -> Profiles {
         }
     };
 
-    let mut offsets = Vec::with_capacity(beams.len() + 1);
-    offsets.push(0);
-    let mut diffs: Vec<u8> = Vec::with_capacity(kept.iter().sum());
+    // Step 2 in place: the raw values become their difference to the
+    // background.
     let mut hist = [0u32; 256];
-    for (j, &n) in kept.iter().enumerate() {
-        for (i, &b) in background.iter().enumerate().take(n) {
-            let d = raw(j, i).saturating_sub(b);
-            hist[usize::from(d)] += 1;
-            diffs.push(d);
+    for (&start, &n) in offsets.iter().zip(&lengths) {
+        for (d, &b) in raw[start..start + n].iter_mut().zip(&background) {
+            *d = d.saturating_sub(b);
+            hist[usize::from(*d)] += 1;
         }
-        offsets.push(diffs.len());
     }
+    let diffs = raw;
     let total = diffs.len() as u32;
     let mut scale = histogram_quantile(&hist, total, config.normalisation_quantile);
     if scale == 0 {
@@ -142,22 +134,34 @@ pub fn normalise_beams(beams: &[SonarBeam], config: &ImageConfig) -> Profiles {
 
 /// Centred moving average of `width` bins (`width / 2` before, the rest
 /// after), over the bins that exist near the ends, rounded to u8.
+#[cfg(test)]
 fn moving_average(values: &[u8], width: usize) -> Vec<u8> {
-    let n = values.len();
-    let mut prefix = Vec::with_capacity(n + 1);
-    prefix.push(0u32);
-    for &v in values {
-        prefix.push(prefix[prefix.len() - 1] + u32::from(v));
-    }
+    let mut out = Vec::with_capacity(values.len());
+    moving_average_into(values, width, values.len(), &mut out);
+    out
+}
+
+/// The first `n` values of the centred moving average of `values` (over
+/// all of them: bins past `n` still enter the last averages), appended to
+/// `out`.
+fn moving_average_into(values: &[u8], width: usize, n: usize, out: &mut Vec<u8>) {
+    let len = values.len();
     let before = width / 2;
     let after = width - 1 - before;
-    (0..n)
-        .map(|i| {
-            let (lo, hi) = (i.saturating_sub(before), (i + after + 1).min(n));
-            let sum = prefix[hi] - prefix[lo];
-            ((sum as f32 / (hi - lo) as f32) + 0.5) as u8
-        })
-        .collect()
+    // Running sum over the window [lo, hi) as it slides.
+    let (mut lo, mut hi, mut sum) = (0usize, 0usize, 0u32);
+    for i in 0..n.min(len) {
+        let (want_lo, want_hi) = (i.saturating_sub(before), (i + after + 1).min(len));
+        while hi < want_hi {
+            sum += u32::from(values[hi]);
+            hi += 1;
+        }
+        while lo < want_lo {
+            sum -= u32::from(values[lo]);
+            lo += 1;
+        }
+        out.push(((sum as f32 / (hi - lo) as f32) + 0.5) as u8);
+    }
 }
 
 /// The value of rank `floor(q·(count-1))` (0-based, ascending) in a
