@@ -295,8 +295,10 @@ fn search_window(beam: &SonarBeam, config: &SegmentationConfig) -> Option<std::o
         .then(|| first as usize..last as usize + 1)
 }
 
-/// Centred moving average of width `width` (clipped at the ends) into `out`.
-fn smooth(intensities: &[u8], width: usize, out: &mut Vec<f32>) {
+/// Centred moving average of width `width` (`width / 2` bins before, the
+/// rest after; clipped at the ends) into `out`. The acoustic image smooths
+/// its beams with it too, so that scan and image peak at the same ranges.
+pub(crate) fn smooth(intensities: &[u8], width: usize, out: &mut Vec<f32>) {
     out.clear();
     let n = intensities.len();
     if width <= 1 || n == 0 {

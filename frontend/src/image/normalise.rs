@@ -2,7 +2,8 @@
 //!
 //! For bin `i` of beam `j` with raw intensity `z_j(i)` (0-255):
 //! 0. `z` is the centred moving average over `range_smoothing_bins` bins
-//!    (fewer at the beam's ends), rounded, when that is more than 1;
+//!    (fewer at the beam's ends; the segmentation's, see
+//!    `segmentation::smooth`), rounded, when that is more than 1;
 //! 1. `z = 0` where the bin's far end is inside the blind zone; bins beyond
 //!    `max_range_m` are dropped;
 //! 2. `d = max(0, z - b(i))` with `b(i)` the `background_quantile` of
@@ -18,6 +19,7 @@
 //! quantiles cost one pass.
 
 use super::ImageConfig;
+use crate::segmentation::smooth;
 use crate::sensors::SonarBeam;
 
 /// Normalised intensities of every beam, stored flat.
@@ -68,11 +70,19 @@ pub fn normalise_beams(beams: &[SonarBeam], config: &ImageConfig) -> Profiles {
     offsets.push(0);
     let total: usize = beams.iter().map(|b| kept_bins(b, config.max_range_m)).sum();
     let mut raw: Vec<u8> = Vec::with_capacity(total);
+    let mut smoothed = Vec::new();
     for beam in beams {
         let n = kept_bins(beam, config.max_range_m);
         let start = raw.len();
         if config.range_smoothing_bins > 1 {
-            moving_average_into(&beam.intensities, config.range_smoothing_bins, n, &mut raw);
+            // The whole beam is smoothed: bins past `n` still enter the
+            // last averages.
+            smooth(
+                &beam.intensities,
+                config.range_smoothing_bins,
+                &mut smoothed,
+            );
+            raw.extend(smoothed[..n].iter().map(|&v| (v + 0.5) as u8));
         } else {
             raw.extend_from_slice(&beam.intensities[..n]);
         }
@@ -132,36 +142,13 @@ pub fn normalise_beams(beams: &[SonarBeam], config: &ImageConfig) -> Profiles {
     Profiles { offsets, values }
 }
 
-/// Centred moving average of `width` bins (`width / 2` before, the rest
-/// after), over the bins that exist near the ends, rounded to u8.
+/// The moving average of the segmentation, rounded to u8 as the image
+/// uses it.
 #[cfg(test)]
 fn moving_average(values: &[u8], width: usize) -> Vec<u8> {
-    let mut out = Vec::with_capacity(values.len());
-    moving_average_into(values, width, values.len(), &mut out);
-    out
-}
-
-/// The first `n` values of the centred moving average of `values` (over
-/// all of them: bins past `n` still enter the last averages), appended to
-/// `out`.
-fn moving_average_into(values: &[u8], width: usize, n: usize, out: &mut Vec<u8>) {
-    let len = values.len();
-    let before = width / 2;
-    let after = width - 1 - before;
-    // Running sum over the window [lo, hi) as it slides.
-    let (mut lo, mut hi, mut sum) = (0usize, 0usize, 0u32);
-    for i in 0..n.min(len) {
-        let (want_lo, want_hi) = (i.saturating_sub(before), (i + after + 1).min(len));
-        while hi < want_hi {
-            sum += u32::from(values[hi]);
-            hi += 1;
-        }
-        while lo < want_lo {
-            sum -= u32::from(values[lo]);
-            lo += 1;
-        }
-        out.push(((sum as f32 / (hi - lo) as f32) + 0.5) as u8);
-    }
+    let mut smoothed = Vec::new();
+    smooth(values, width, &mut smoothed);
+    smoothed.iter().map(|&v| (v + 0.5) as u8).collect()
 }
 
 /// The value of rank `floor(q·(count-1))` (0-based, ascending) in a
