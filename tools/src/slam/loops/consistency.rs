@@ -231,10 +231,9 @@ impl ConsistencyGraph {
             // exclude them from the later ones' searches.
             let mut excluded = BitSet::empty(words);
             for &v in &fresh {
-                let mut candidates = adjacency[v].clone();
-                let mut x = adjacency[v].intersection(&excluded);
-                candidates = candidates.difference(&excluded);
-                x.remove(v);
+                // No vertex is its own neighbour, so `v` is in neither set.
+                let candidates = adjacency[v].difference(&excluded);
+                let x = adjacency[v].intersection(&excluded);
                 search.expand(&mut vec![v], candidates, x);
                 excluded.insert(v);
             }
