@@ -76,6 +76,19 @@ fn match_one(c: &mut Criterion) {
             })
         });
     }
+    // The SLAM pipeline's setting (sub-cell pose from the quadratic peak,
+    // no second peak) over a loop candidate's smallest window.
+    let pipeline = MatcherConfig {
+        refine_iterations: 0,
+        second_peak: false,
+        ..MatcherConfig::default()
+    };
+    let small = SearchWindow::new(0.5, 0.5, 3.0_f64.to_radians());
+    group.bench_function("pipeline_window_0.5m_3deg", |bench| {
+        bench.iter(|| {
+            match_scan(black_box(&b.wall_points), &image, &prior, &small, &pipeline).unwrap()
+        })
+    });
     group.finish();
 }
 
