@@ -18,8 +18,21 @@
 //! stays an upper bound (to within the scale's rounding, which is upwards).
 //! Level `h` is built from level `h - 1` with one maximum of two cells
 //! `2^(h-1)` apart per axis; level 1 from the raster with three cells.
+//!
+//! Levels up to [`EAGER_LEVELS`] are built with the pyramid; the higher
+//! ones, which only searches over windows wider than `2^EAGER_LEVELS`
+//! cells use (first contacts with a place seen long ago), on first use.
+//! On the St Pere replay no search needs them, which saves two of the
+//! eleven bytes per cell an image holds (f32 raster and seven levels).
 
 use super::grid::Grid;
+use std::sync::OnceLock;
+
+/// Levels built with the pyramid; the rest are built when first read.
+/// Five levels bound blocks of 32 × 32 translations: windows up to ±15
+/// cells (±3 m at 0.2 m cells, the sequential matches' largest) start
+/// their search there.
+pub const EAGER_LEVELS: usize = 5;
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct PyramidLevel {
@@ -66,10 +79,11 @@ impl PyramidLevel {
     }
 }
 
-#[derive(Clone, Debug, PartialEq, Default)]
+#[derive(Clone, Debug, Default)]
 pub struct Pyramid {
-    /// `levels[h - 1]` is level `h`.
-    levels: Vec<PyramidLevel>,
+    /// `levels[h - 1]` is level `h`; the ones above `EAGER_LEVELS` are
+    /// filled on first use.
+    levels: Vec<OnceLock<PyramidLevel>>,
     /// Quantisation: a stored value `q` stands for at most `q / scale`.
     scale: f32,
     /// The largest value of the raster (0 for an empty one).
@@ -96,30 +110,25 @@ impl Pyramid {
             };
         }
         let quantised: Vec<u8> = grid.values().iter().map(|&v| quantise(v, scale)).collect();
-        let mut out: Vec<PyramidLevel> = Vec::with_capacity(levels);
+        let levels: Vec<OnceLock<PyramidLevel>> = (0..levels).map(|_| OnceLock::new()).collect();
         // Level 1: windows of 3 cells, as two overlapping windows of 2.
         let pairs = dilate(&quantised, width, height, 1);
-        out.push(PyramidLevel {
+        let first = PyramidLevel {
             width,
             height,
             block: 2,
             values: dilate(&pairs, width, height, 1),
-        });
-        for h in 2..=levels {
-            let previous = &out[h - 2];
-            let shift = 1usize << (h - 1);
-            out.push(PyramidLevel {
-                width,
-                height,
-                block: 1 << h,
-                values: dilate(&previous.values, width, height, shift),
-            });
-        }
-        Self {
-            levels: out,
+        };
+        levels[0].set(first).expect("a new cell is empty");
+        let pyramid = Self {
+            levels,
             scale,
             max_value: max,
+        };
+        for h in 2..=pyramid.len().min(EAGER_LEVELS) {
+            pyramid.level(h);
         }
+        pyramid
     }
 
     /// Number of levels above the raster (the raster itself is level 0).
@@ -131,9 +140,24 @@ impl Pyramid {
         self.levels.is_empty()
     }
 
-    /// Level `h` (`1 ≤ h ≤ len()`).
+    /// Level `h` (`1 ≤ h ≤ len()`), built from level `h - 1` if this is
+    /// its first use.
     pub fn level(&self, h: usize) -> &PyramidLevel {
-        &self.levels[h - 1]
+        self.levels[h - 1].get_or_init(|| {
+            let previous = self.level(h - 1);
+            let (width, height) = (previous.width, previous.height);
+            PyramidLevel {
+                width,
+                height,
+                block: 1 << h,
+                values: dilate(&previous.values, width, height, 1 << (h - 1)),
+            }
+        })
+    }
+
+    /// Levels built so far (eager ones and those read since).
+    pub fn built_levels(&self) -> usize {
+        self.levels.iter().filter(|l| l.get().is_some()).count()
     }
 
     /// The largest value of the raster the pyramid was built from (0 for
@@ -146,6 +170,17 @@ impl Pyramid {
     /// divided by `scale` bounds the sum of the raster values.
     pub fn scale(&self) -> f32 {
         self.scale
+    }
+}
+
+/// Pyramids are equal when every level is: levels not built yet are
+/// built to compare them.
+impl PartialEq for Pyramid {
+    fn eq(&self, other: &Self) -> bool {
+        self.scale == other.scale
+            && self.max_value == other.max_value
+            && self.len() == other.len()
+            && (1..=self.len()).all(|h| self.level(h) == other.level(h))
     }
 }
 
@@ -195,7 +230,8 @@ fn dilate(values: &[u8], width: usize, height: usize, s: usize) -> Vec<u8> {
     let mut out = vec![0u8; values.len()];
     for (src, dst) in values.chunks_exact(width).zip(out.chunks_exact_mut(width)) {
         let split = width.saturating_sub(s);
-        max_of(&mut dst[..split], &src[..split], &src[s..]);
+        // `s` may exceed the width (high levels of a narrow image).
+        max_of(&mut dst[..split], &src[..split], &src[s.min(width)..]);
         dst[split..].copy_from_slice(&src[split..]);
     }
     // In place, top down: row y + s is still the row pass's when row y
@@ -259,10 +295,12 @@ mod tests {
                 0.0
             };
         }
-        let pyramid = Pyramid::build(&grid, 5);
-        assert_eq!(pyramid.len(), 5);
+        // Levels 6 and 7 are built on first use, from the eager ones.
+        let pyramid = Pyramid::build(&grid, 7);
+        assert_eq!(pyramid.len(), 7);
+        assert_eq!(pyramid.built_levels(), EAGER_LEVELS);
         let scale = pyramid.scale();
-        for h in 1..=5usize {
+        for h in 1..=7usize {
             let level = pyramid.level(h);
             let block = 1i64 << h;
             assert_eq!(level.block() as i64, block);
@@ -290,6 +328,7 @@ mod tests {
                 }
             }
         }
+        assert_eq!(pyramid.built_levels(), 7);
     }
 
     #[test]

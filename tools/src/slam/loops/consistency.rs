@@ -272,7 +272,9 @@ impl ConsistencyGraph {
             }
         }
         for i in 0..m {
-            if !incumbent.contains(i) && adjacency[i].iter().any(|j| j < i && !incumbent.contains(j)) {
+            if !incumbent.contains(i)
+                && adjacency[i].iter().any(|j| j < i && !incumbent.contains(j))
+            {
                 incumbent.insert(i);
             }
         }
