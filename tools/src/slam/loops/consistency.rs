@@ -271,10 +271,8 @@ impl ConsistencyGraph {
                 incumbent.insert(i);
             }
         }
-        for i in 0..m {
-            if !incumbent.contains(i)
-                && adjacency[i].iter().any(|j| j < i && !incumbent.contains(j))
-            {
+        for (i, row) in adjacency.iter().enumerate() {
+            if !incumbent.contains(i) && row.iter().any(|j| j < i && !incumbent.contains(j)) {
                 incumbent.insert(i);
             }
         }
@@ -354,12 +352,12 @@ impl MinCover<'_> {
         let mut unmatched = alive.clone();
         let mut matching = 0;
         for v in alive.iter() {
-            if unmatched.contains(v) {
-                if let Some(u) = unmatched.intersection(&self.adjacency[v]).iter().next() {
-                    unmatched.remove(u);
-                    unmatched.remove(v);
-                    matching += 1;
-                }
+            if unmatched.contains(v)
+                && let Some(u) = unmatched.intersection(&self.adjacency[v]).iter().next()
+            {
+                unmatched.remove(u);
+                unmatched.remove(v);
+                matching += 1;
             }
         }
         if size + matching >= self.best_size {
@@ -603,8 +601,8 @@ mod tests {
             }
         }
         let mut g = ConsistencyGraph::new();
-        for v in 0..n {
-            let neighbours: Vec<usize> = (0..v).filter(|&u| !conflict[u][v]).collect();
+        for (v, row) in conflict.iter().enumerate() {
+            let neighbours: Vec<usize> = (0..v).filter(|&u| !row[u]).collect();
             g.push_vertex(measurement(v), &neighbours);
         }
         let found = g.max_clique();
