@@ -26,7 +26,17 @@ use super::{ImageConfig, Interpolation};
 use crate::error::FrontendError;
 use crate::sensors::SonarBeam;
 use echofield_graph::{Se2, wrap_angle};
+use std::cell::RefCell;
 use std::f64::consts::SQRT_2;
+
+thread_local! {
+    /// The accumulators' per-cell buffers, kept per thread between images:
+    /// a fresh multi-megabyte buffer per image comes from `mmap` and costs
+    /// a page fault per 4 KiB (two when it is zero-filled lazily), which
+    /// on the St Pere replay took longer than filling the cells.
+    static CLOSEST: RefCell<Vec<u64>> = const { RefCell::new(Vec::new()) };
+    static MEAN: RefCell<Vec<[f32; 2]>> = const { RefCell::new(Vec::new()) };
+}
 
 /// Largest image accepted, in cells (256 MB of `f32`).
 pub const MAX_CELLS: usize = 1 << 26;
@@ -168,9 +178,11 @@ pub fn rasterise(
     let n = grid.width() * grid.height();
     let mut painter = Painter::new(&grid, config);
     match config.interpolation {
-        Interpolation::Nearest => {
+        Interpolation::Nearest => CLOSEST.with_borrow_mut(|buffer| {
+            buffer.clear();
+            buffer.resize(n, u64::MAX);
             let mut acc = ClosestSample {
-                best: vec![u64::MAX; n],
+                best: std::mem::take(buffer),
             };
             painter.paint(&lines, profiles, &mut acc);
             for (out, key) in grid.values_mut().iter_mut().zip(&acc.best) {
@@ -180,16 +192,20 @@ pub fn rasterise(
                     f32::from_bits(*key as u32)
                 };
             }
-        }
-        Interpolation::AngularWindow => {
+            *buffer = acc.best;
+        }),
+        Interpolation::AngularWindow => MEAN.with_borrow_mut(|buffer| {
+            buffer.clear();
+            buffer.resize(n, [0.0; 2]);
             let mut acc = MeanSample {
-                sum_count: vec![[0.0; 2]; n],
+                sum_count: std::mem::take(buffer),
             };
             painter.paint(&lines, profiles, &mut acc);
             for (out, [sum, count]) in grid.values_mut().iter_mut().zip(&acc.sum_count) {
                 *out = if *count > 0.0 { sum / count } else { 0.0 };
             }
-        }
+            *buffer = acc.sum_count;
+        }),
     }
     Ok(grid)
 }
