@@ -69,7 +69,7 @@ pub struct LoopCloser<'a> {
     pub chain: DeadReckoningChain,
     /// The current maximum clique.
     pub accepted: Clique,
-    /// Clique searches that stopped at the call limit.
+    /// Clique searches that stopped at the work limit.
     pub inexact_cliques: usize,
     /// Matches run (forward and reverse).
     pub matches: usize,

@@ -112,7 +112,7 @@ fn run(
     }
     if closer.inexact_cliques > 0 {
         warnings.push(format!(
-            "{} consistency searches stopped at the call limit (the largest clique found by then was used)",
+            "{} consistency searches stopped at the work limit (the largest clique found by then was used)",
             closer.inexact_cliques
         ));
     }
