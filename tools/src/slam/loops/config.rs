@@ -24,7 +24,12 @@ pub struct LoopConfig {
     /// 0.27-0.29 m -> 0.25-0.26 m, for 0.05-0.3 s more matching).
     pub min_predicted_overlap: f64,
     /// At most this many candidates are matched per new node, the ones
-    /// with the largest predicted overlap first. Default 4.
+    /// with the largest predicted overlap first. Default 4. It sets the
+    /// recall over node pairs against time, at about 1.2 ms per candidate
+    /// (forward and symmetric match). On the St Pere replay (seed 1), 4,
+    /// 8, 12, 20 and 40 give pair recall 0.20, 0.35, 0.47, 0.66 and 0.81
+    /// for 1.7, 2.3, 3.0, 4.4 and 7 s of matching. Revisit recall and ATE
+    /// change little.
     pub max_candidates_per_node: usize,
     /// Search half-width in standard deviations of the relative
     /// uncertainty of the two nodes (propagated along the most certain path
