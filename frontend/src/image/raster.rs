@@ -131,11 +131,11 @@ trait Accumulator {
 /// units of 2⁻³² cells², integer arithmetic on the fixed-point fractions)
 /// and the value are packed into one `u64` key (non-negative `f32` bits
 /// order like the numbers), so keeping the closest is a branch-free `min`.
-struct ClosestSample {
-    best: Vec<u64>,
+struct ClosestSample<'a> {
+    best: &'a mut [u64],
 }
 
-impl Accumulator for ClosestSample {
+impl Accumulator for ClosestSample<'_> {
     #[inline]
     fn put(&mut self, idx: usize, fx: u32, fy: u32, v: f32) {
         // Offsets from the centre on 31-bit fractions, |d| ≤ 2³⁰: the sum
@@ -152,11 +152,11 @@ impl Accumulator for ClosestSample {
 
 /// Averages the samples of a cell: `(sum, count)` side by side, so one
 /// sample touches one cache line.
-struct MeanSample {
-    sum_count: Vec<[f32; 2]>,
+struct MeanSample<'a> {
+    sum_count: &'a mut [[f32; 2]],
 }
 
-impl Accumulator for MeanSample {
+impl Accumulator for MeanSample<'_> {
     #[inline]
     fn put(&mut self, idx: usize, _fx: u32, _fy: u32, v: f32) {
         let slot = &mut self.sum_count[idx];
@@ -181,30 +181,24 @@ pub fn rasterise(
         Interpolation::Nearest => CLOSEST.with_borrow_mut(|buffer| {
             buffer.clear();
             buffer.resize(n, u64::MAX);
-            let mut acc = ClosestSample {
-                best: std::mem::take(buffer),
-            };
+            let mut acc = ClosestSample { best: buffer };
             painter.paint(&lines, profiles, &mut acc);
-            for (out, key) in grid.values_mut().iter_mut().zip(&acc.best) {
+            for (out, key) in grid.values_mut().iter_mut().zip(acc.best.iter()) {
                 *out = if *key == u64::MAX {
                     0.0
                 } else {
                     f32::from_bits(*key as u32)
                 };
             }
-            *buffer = acc.best;
         }),
         Interpolation::AngularWindow => MEAN.with_borrow_mut(|buffer| {
             buffer.clear();
             buffer.resize(n, [0.0; 2]);
-            let mut acc = MeanSample {
-                sum_count: std::mem::take(buffer),
-            };
+            let mut acc = MeanSample { sum_count: buffer };
             painter.paint(&lines, profiles, &mut acc);
-            for (out, [sum, count]) in grid.values_mut().iter_mut().zip(&acc.sum_count) {
+            for (out, [sum, count]) in grid.values_mut().iter_mut().zip(acc.sum_count.iter()) {
                 *out = if *count > 0.0 { sum / count } else { 0.0 };
             }
-            *buffer = acc.sum_count;
         }),
     }
     Ok(grid)
@@ -588,9 +582,8 @@ mod tests {
     fn closest_sample_keys_handle_the_cell_corners() {
         // Regression: at a fraction of 0 on both axes the squared offset
         // sum is 2^63, which overflowed an i64.
-        let mut acc = ClosestSample {
-            best: vec![u64::MAX; 1],
-        };
+        let mut best = [u64::MAX];
+        let mut acc = ClosestSample { best: &mut best };
         acc.put(0, 0, 0, 0.25); // a corner: the farthest a sample can be
         acc.put(0, u32::MAX, u32::MAX, 0.5); // the opposite corner
         assert_eq!(f32::from_bits(acc.best[0] as u32), 0.5);

@@ -520,7 +520,15 @@ mod tests {
         g
     }
 
-    /// The maximum clique size by trying every subset (n ≤ 12).
+    /// Each pair `(a, b)`, `a < b < n`, with probability `density`.
+    fn random_edges(rng: &mut ChaCha8Rng, n: usize, density: f64) -> Vec<(usize, usize)> {
+        (0..n)
+            .flat_map(|a| (a + 1..n).map(move |b| (a, b)))
+            .filter(|_| rng.random_bool(density))
+            .collect()
+    }
+
+    /// The maximum clique size by trying every subset (small n).
     fn brute_force(n: usize, edges: &[(usize, usize)]) -> usize {
         let adjacent = |a: usize, b: usize| edges.contains(&(a, b)) || edges.contains(&(b, a));
         (0u32..1 << n)
@@ -569,14 +577,7 @@ mod tests {
         for trial in 0..60 {
             let n = rng.random_range(1..=12);
             let density = rng.random_range(0.1..0.9);
-            let mut edges = Vec::new();
-            for a in 0..n {
-                for b in a + 1..n {
-                    if rng.random_bool(density) {
-                        edges.push((a, b));
-                    }
-                }
-            }
+            let edges = random_edges(&mut rng, n, density);
             let found = graph_with_edges(n, &edges).max_clique();
             assert_eq!(found.ids.len(), brute_force(n, &edges), "trial {trial}");
             assert_is_clique(&found.ids, &edges);
@@ -591,14 +592,7 @@ mod tests {
         for trial in 0..40 {
             let n = rng.random_range(8..=16);
             let density = rng.random_range(0.8..0.98);
-            let mut edges = Vec::new();
-            for a in 0..n {
-                for b in a + 1..n {
-                    if rng.random_bool(density) {
-                        edges.push((a, b));
-                    }
-                }
-            }
+            let edges = random_edges(&mut rng, n, density);
             let found = graph_with_edges(n, &edges).max_clique();
             assert_eq!(found.ids.len(), brute_force(n, &edges), "trial {trial}");
             assert_is_clique(&found.ids, &edges);
