@@ -53,3 +53,46 @@ fn st_pere_replay_is_within_a_metre_of_dgps() {
     let recall = report.loop_recall.unwrap();
     assert!(recall >= 0.15 && recall < revisits, "recall {recall:.3}");
 }
+
+/// `loops.densify`: after the mission every overlapping pair whose
+/// relative pose the estimate knows is matched by a local climb. Measured
+/// on seed 1: recall over node pairs 0.20 -> 0.88, precision 0.987 ->
+/// 0.990, ATE 0.245 -> 0.224 m.
+#[test]
+fn densification_closes_loops_between_the_overlapping_rotations() {
+    let mission = simulate_mission(&Scenario::named("stpere").unwrap(), 1).unwrap();
+    let mut config = SlamConfig::default();
+    config.loops.densify = true;
+    let output = run_mission(&mission, &config, &NoProgress).unwrap();
+    let report = &output.report;
+    let ate = report.ate.as_ref().unwrap();
+    assert!(ate.rmse_m <= 0.35, "ATE {:.3} m against DGPS", ate.rmse_m);
+    let dense: Vec<_> = output.loops.iter().filter(|l| l.densified).collect();
+    assert_eq!(dense.len(), report.loop_densified_candidates);
+    assert!(
+        report.loops_densified >= 1000,
+        "{} densified loops",
+        report.loops_densified
+    );
+    // Densified pairs come after the mission, never repeat a pair the
+    // mission examined, and keep the minimum separation.
+    let last = (report.nodes - 1) as u64;
+    let mut pairs = std::collections::HashSet::new();
+    for l in &output.loops {
+        assert!(pairs.insert((l.from, l.to)), "{} -> {} twice", l.from, l.to);
+        if l.densified {
+            assert_eq!(l.examined_at, last);
+            assert!(l.to - l.from >= config.loops.min_separation_nodes as u64);
+        }
+    }
+    let precision = report.loop_precision.unwrap();
+    assert!(precision >= 0.98, "precision {precision:.3}");
+    let recall = report.loop_recall.unwrap();
+    assert!(recall >= 0.8, "recall {recall:.3}");
+    let accepted_edges = output
+        .graph
+        .edges()
+        .filter(|e| e.kind == echofield_graph::EdgeKind::Loop)
+        .count();
+    assert_eq!(accepted_edges, report.loops_accepted);
+}

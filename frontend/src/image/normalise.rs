@@ -19,6 +19,7 @@
 //! quantiles cost one pass.
 
 use super::ImageConfig;
+use super::grid::floor;
 use crate::segmentation::smooth;
 use crate::sensors::SonarBeam;
 
@@ -51,7 +52,7 @@ pub fn kept_bins(beam: &SonarBeam, max_range_m: Option<f64>) -> usize {
     match max_range_m {
         None => n,
         Some(r) => {
-            let k = ((r - beam.first_bin_range_m) / beam.bin_size_m).floor();
+            let k = floor((r - beam.first_bin_range_m) / beam.bin_size_m);
             if k <= 0.0 { 0 } else { (k as usize).min(n) }
         }
     }

@@ -24,6 +24,7 @@
 //! the raster averages the samples of overlapping wedges. Gaps wider than
 //! `max_wedge_rad` stay empty except within `w` of a beam.
 
+use super::grid::floor;
 use super::normalise::Profiles;
 use super::{ImageConfig, Interpolation};
 use crate::sensors::SonarBeam;
@@ -169,7 +170,7 @@ impl PolarSamples {
         // Inside the layer's span if a whole turn puts it there, else next
         // to the nearer end.
         let mut b = sign * bearing;
-        b += TAU * ((first - b) / TAU).ceil();
+        b -= TAU * floor((b - first) / TAU);
         if b > last && (b - last) > (first + TAU - b) {
             b -= TAU;
         }
@@ -297,7 +298,7 @@ impl PolarSamples {
         if !(t > -1.0 && t < profile.len() as f64) {
             return 0.0;
         }
-        let i0 = t.floor();
+        let i0 = floor(t);
         let f = t - i0;
         let at = |i: f64| -> f64 {
             if i >= 0.0 && (i as usize) < profile.len() {

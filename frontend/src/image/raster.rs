@@ -21,6 +21,7 @@
 //! geometry, are not filled; each beam's own line is always drawn.
 
 use super::grid::Grid;
+use super::grid::floor;
 use super::normalise::Profiles;
 use super::{ImageConfig, Interpolation};
 use crate::error::FrontendError;
@@ -497,7 +498,7 @@ struct SweepLine {
 impl BeamLine {
     /// First bin whose (sub-sampled) far end may lie at or beyond `range_m`.
     fn bin_at_or_after(&self, range_m: f64) -> usize {
-        let k = ((range_m - self.first_bin_range_m) / self.bin_size_m - 1.5).floor();
+        let k = floor((range_m - self.first_bin_range_m) / self.bin_size_m - 1.5);
         if k <= 0.0 { 0 } else { k as usize }
     }
 }

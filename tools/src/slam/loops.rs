@@ -26,6 +26,10 @@
 //!    it). Accepted loops become `Loop` edges with the match covariance
 //!    plus the `min_sigma` floor; the backend's robust kernel on loop edges
 //!    is the last line of defence.
+//! 5. **Densification** (optional, `densify`, after the mission): the pairs
+//!    never examined whose relative pose the estimate already knows are
+//!    matched by a local climb from the estimate and accepted when they
+//!    agree with it ([`LoopCloser::densify`]).
 
 pub mod checks;
 pub mod config;
@@ -37,7 +41,7 @@ use super::SlamError;
 use super::estimate::{Estimate, make_edge};
 use super::nodes::{NodeData, predicted_overlap};
 use super::result::{LoopRecord, RejectReason};
-use super::uncertainty::{DriftModel, invert, translation_trace, with_floor};
+use super::uncertainty::{DriftModel, invert, mahalanobis2, translation_trace, with_floor};
 use checks::{Candidate, examine};
 use consistency::{Clique, ConsistencyGraph, DeadReckoningChain, LoopMeasurement};
 use echofield_frontend::matcher::{MatcherConfig, SearchWindow};
@@ -69,6 +73,8 @@ pub struct LoopCloser<'a> {
     pub chain: DeadReckoningChain,
     /// The current maximum clique.
     pub accepted: Clique,
+    /// Loops of the densification pass, accepted against the estimate.
+    dense: Vec<LoopMeasurement>,
     /// Clique searches that stopped at the work limit.
     pub inexact_cliques: usize,
     /// Matches run (forward and reverse).
@@ -98,6 +104,7 @@ impl<'a> LoopCloser<'a> {
                 ids: Vec::new(),
                 exact: true,
             },
+            dense: Vec::new(),
             inexact_cliques: 0,
             matches: 0,
             validation_time_s: 0.0,
@@ -142,23 +149,7 @@ impl<'a> LoopCloser<'a> {
             return Vec::new();
         }
         let poses = estimate.poses();
-        let mut overlaps: Vec<(usize, f64)> = (0..=k - self.config.min_separation_nodes)
-            .filter(|&j| nodes[j].matchable() && !self.examined.contains(&(j, k)))
-            .filter_map(|j| {
-                let j_from_k = poses[j].between(&poses[k]);
-                let reach = nodes[j].footprint_m + node.footprint_m;
-                if j_from_k.translation().norm() > reach {
-                    return None;
-                }
-                let overlap = predicted_overlap(
-                    &node.scan.points,
-                    &j_from_k,
-                    nodes[j].footprint_m,
-                    OVERLAP_STRIDE,
-                );
-                (overlap >= self.config.min_predicted_overlap).then_some((j, overlap))
-            })
-            .collect();
+        let mut overlaps = self.overlapping(k, nodes, poses);
         overlaps.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
         let max = self.config.max_candidates_per_node;
         overlaps.truncate(CANDIDATE_POOL * max);
@@ -193,6 +184,106 @@ impl<'a> LoopCloser<'a> {
         }
         ready.extend(waiting);
         ready
+    }
+
+    /// The densification pass after the mission (`LoopConfig::densify`):
+    /// every pair at least `min_separation_nodes` apart that was never
+    /// examined, whose predicted overlap at the current estimate passes
+    /// the gate and whose search window (`n_sigma` of the relative
+    /// uncertainty) fits within `densify_max_window`, is matched by
+    /// climbing from the estimate to the nearest maximum of eq. (6), within
+    /// `min_window` ([`match_scan_local`](echofield_frontend::matcher::match_scan_local)),
+    /// the symmetric match likewise. A loop that passes the checks of
+    /// [`checks`] is accepted when it agrees with the estimate (squared
+    /// Mahalanobis distance under its covariance plus the prior's at most
+    /// `consistency_max_chi2`), else rejected as `inconsistent`; the final
+    /// solve's robust kernel still judges it. Returns whether loops were
+    /// added.
+    pub fn densify(
+        &mut self,
+        nodes: &[NodeData],
+        estimate: &mut Estimate,
+    ) -> Result<bool, SlamError> {
+        let n = nodes.len();
+        let sep = self.config.min_separation_nodes;
+        if !self.config.enabled || !self.config.densify || n <= sep {
+            return Ok(false);
+        }
+        let before = self.dense.len();
+        let (max, min) = (&self.config.densify_max_window, &self.config.min_window);
+        for k in sep..n {
+            if !nodes[k].matchable() {
+                continue;
+            }
+            let poses = estimate.poses();
+            let pairs = self.overlapping(k, nodes, poses);
+            if pairs.is_empty() {
+                continue;
+            }
+            let path = estimate.links().relative_from(k, poses);
+            for (j, overlap) in pairs {
+                let mut c = self.candidate(j, k, overlap, path[j].as_ref(), poses);
+                let w = &c.raw_window;
+                if w.x_m > max.x_m || w.y_m > max.y_m || w.theta_rad > max.theta_rad {
+                    continue;
+                }
+                c.raw_window = min.search();
+                c.densify = true;
+                self.examined.insert((j, k));
+                let id = self.records.len();
+                let mut record = self.examine(&c, n - 1, nodes)?;
+                if record.rejected_by.is_none()
+                    && let (Some(z), Some(cov)) = (record.measurement, record.covariance)
+                {
+                    let covariance = with_floor(&cov, &self.config.min_sigma);
+                    let e = c.prior.inverse().compose(&z);
+                    let chi2 = mahalanobis2(&e, &(covariance + c.prior_covariance))
+                        .unwrap_or(f64::INFINITY);
+                    if chi2 <= self.config.consistency_max_chi2 {
+                        self.dense.push(LoopMeasurement {
+                            id,
+                            from: j,
+                            to: k,
+                            z,
+                            covariance,
+                        });
+                    } else {
+                        record.rejected_by = Some(RejectReason::Inconsistent);
+                    }
+                }
+                self.records.push(record);
+                self.candidates.push(c);
+            }
+        }
+        if self.dense.len() == before {
+            return Ok(false);
+        }
+        estimate.set_loops(self.accepted_edges());
+        Ok(true)
+    }
+
+    /// Older nodes `j` (at least `min_separation_nodes` back, never
+    /// examined with `k`) whose predicted overlap with `k` at `poses`
+    /// passes the gate, with that overlap.
+    fn overlapping(&self, k: usize, nodes: &[NodeData], poses: &[Se2]) -> Vec<(usize, f64)> {
+        let node = &nodes[k];
+        (0..=k - self.config.min_separation_nodes)
+            .filter(|&j| nodes[j].matchable() && !self.examined.contains(&(j, k)))
+            .filter_map(|j| {
+                let j_from_k = poses[j].between(&poses[k]);
+                let reach = nodes[j].footprint_m + node.footprint_m;
+                if j_from_k.translation().norm() > reach {
+                    return None;
+                }
+                let overlap = predicted_overlap(
+                    &node.scan.points,
+                    &j_from_k,
+                    nodes[j].footprint_m,
+                    OVERLAP_STRIDE,
+                );
+                (overlap >= self.config.min_predicted_overlap).then_some((j, overlap))
+            })
+            .collect()
     }
 
     /// The prior and window of the pair `(j, k)`.
@@ -236,6 +327,7 @@ impl<'a> LoopCloser<'a> {
             predicted_overlap: overlap,
             raw_window: SearchWindow::new(sd(0), sd(1), sd(2).min(std::f64::consts::PI)),
             wide: false,
+            densify: false,
         }
     }
 
@@ -355,8 +447,10 @@ impl<'a> LoopCloser<'a> {
         self.accepted
             .ids
             .iter()
-            .filter_map(|&id| {
-                let m = self.consistency.measurement(id)?;
+            .filter_map(|&id| self.consistency.measurement(id))
+            .chain(&self.dense)
+            .filter_map(|m| {
+                let id = m.id;
                 let metadata = loop_metadata(&self.records[id]);
                 let edge =
                     make_edge(EdgeKind::Loop, m.from, m.to, m.z, &m.covariance, metadata).ok()?;
@@ -369,6 +463,7 @@ impl<'a> LoopCloser<'a> {
     /// with `reason`, and updates the estimate's loop edges.
     pub fn reject(&mut self, ids: &[usize], reason: RejectReason, estimate: &mut Estimate) {
         self.accepted.ids.retain(|id| !ids.contains(id));
+        self.dense.retain(|m| !ids.contains(&m.id));
         for &id in ids {
             self.records[id].accepted = false;
             self.records[id].rejected_by = Some(reason);
@@ -380,7 +475,13 @@ impl<'a> LoopCloser<'a> {
     /// as `inconsistent` for loops that passed their checks but are not in
     /// it; deferred candidates keep `deferred`.
     pub fn finish(&mut self) {
-        let accepted: HashSet<usize> = self.accepted.ids.iter().copied().collect();
+        let accepted: HashSet<usize> = self
+            .accepted
+            .ids
+            .iter()
+            .copied()
+            .chain(self.dense.iter().map(|m| m.id))
+            .collect();
         for (id, record) in self.records.iter_mut().enumerate() {
             record.accepted = accepted.contains(&id);
             if record.rejected_by.is_none() && !record.accepted {
@@ -395,6 +496,7 @@ impl<'a> LoopCloser<'a> {
             .ids
             .iter()
             .filter_map(|&id| self.consistency.measurement(id).cloned())
+            .chain(self.dense.iter().cloned())
             .collect()
     }
 }

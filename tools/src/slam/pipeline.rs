@@ -104,6 +104,8 @@ fn run(
         closer.close_loops(k, &nodes, &mut estimate, &mut optimise)?;
         progress.node_done(k + 1, closer.accepted.ids.len());
     }
+    // Densified loops go straight into the final batch solve.
+    closer.densify(&nodes, &mut estimate)?;
     closer.finish();
     if let Some(e) = incremental_error {
         warnings.push(format!(
@@ -168,6 +170,8 @@ fn run(
                 })
                 .sum::<usize>(),
         loops_accepted: loops.iter().filter(|l| l.accepted).count(),
+        loop_densified_candidates: loops.iter().filter(|l| l.densified).count(),
+        loops_densified: loops.iter().filter(|l| l.densified && l.accepted).count(),
         loop_rejections: rejections(&loops),
         edges: edge_counts(&graph),
         time_s: 0.0,

@@ -198,6 +198,9 @@ pub struct LoopRecord {
     pub accepted: bool,
     /// The first check that failed, for rejected candidates.
     pub rejected_by: Option<RejectReason>,
+    /// Found by the densification pass after the mission
+    /// (`LoopConfig::densify`), not while the mission ran.
+    pub densified: bool,
     /// The matcher's reason for "no match", when it gave one.
     pub no_match: Option<String>,
     /// Weight of the edge under the robust kernel at the final solution
@@ -309,6 +312,10 @@ pub struct Report {
     /// Scan matches run in all (sequential, loop, reverse).
     pub matches_run: usize,
     pub loops_accepted: usize,
+    /// Candidates of the densification pass (`loops.densify`; included in
+    /// `loop_candidates`) and those accepted (included in `loops_accepted`).
+    pub loop_densified_candidates: usize,
+    pub loops_densified: usize,
     /// Rejected candidates per reason.
     pub loop_rejections: BTreeMap<RejectReason, usize>,
     /// Edges of the final graph per kind.

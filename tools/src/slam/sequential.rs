@@ -158,6 +158,7 @@ fn match_one(
             &node.image,
             &tolerance,
             &config.matcher,
+            false,
         )
         .map_err(|e| {
             SlamError::frontend(format!("reverse sequential match {k} -> {}", k - 1), e)

@@ -11,7 +11,7 @@
 use super::result::ReverseCheck;
 use echofield_frontend::FrontendError;
 use echofield_frontend::image::AcousticImage;
-use echofield_frontend::matcher::{MatcherConfig, SearchWindow, match_scan};
+use echofield_frontend::matcher::{MatcherConfig, SearchWindow, match_scan, match_scan_local};
 use echofield_graph::{Se2, wrap_angle};
 use nalgebra::Point2;
 
@@ -25,15 +25,19 @@ pub struct Tolerance {
 
 /// Matches `old_scan` (frame `j`) against `new_image` (frame `k`) around
 /// `forward⁻¹` and compares. Returns the check and, when both agree within
-/// the tolerance, the combined measurement of `j_from_k`.
+/// the tolerance, the combined measurement of `j_from_k`. `local` climbs
+/// to the nearest maximum instead of searching the window
+/// ([`match_scan_local`]).
 pub fn reverse_match(
     forward: &Se2,
     old_scan: &[Point2<f64>],
     new_image: &AcousticImage,
     tolerance: &Tolerance,
     matcher: &MatcherConfig,
+    local: bool,
 ) -> Result<(ReverseCheck, Option<Se2>), FrontendError> {
-    let outcome = match_scan(
+    let search = if local { match_scan_local } else { match_scan };
+    let outcome = search(
         old_scan,
         new_image,
         &forward.inverse(),

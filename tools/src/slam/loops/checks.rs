@@ -24,7 +24,7 @@ use crate::slam::result::{LoopRecord, RejectReason};
 use crate::slam::symmetric::{Tolerance, reverse_match};
 use crate::slam::uncertainty::symmetric;
 use echofield_frontend::matcher::{
-    MatchOutcome, MatchResult, MatcherConfig, SearchWindow, match_scan,
+    MatchOutcome, MatchResult, MatcherConfig, SearchWindow, match_scan, match_scan_local,
 };
 use echofield_graph::Se2;
 use nalgebra::Matrix3;
@@ -42,6 +42,10 @@ pub struct Candidate {
     /// Searched over `max_window` although its raw window is larger (see
     /// `LoopConfig::wide_searches_per_node`).
     pub wide: bool,
+    /// A densification pair (after the mission, prior from the optimised
+    /// estimate): both matches climb to the nearest maximum
+    /// ([`match_scan_local`]) instead of searching the whole window.
+    pub densify: bool,
 }
 
 impl Candidate {
@@ -80,6 +84,7 @@ impl Candidate {
             reverse: None,
             accepted: false,
             rejected_by: None,
+            densified: self.densify,
             no_match: None,
             robust_weight: None,
             ground_truth: None,
@@ -111,8 +116,13 @@ pub fn examine(
         return Ok(record);
     }
     let stage = || format!("loop match {} -> {}", candidate.from, candidate.to);
+    let matcher_fn = if candidate.densify {
+        match_scan_local
+    } else {
+        match_scan
+    };
     let search = |window: &SearchWindow| {
-        match_scan(
+        matcher_fn(
             &new.scan.points,
             &old.image,
             &candidate.prior,
@@ -168,6 +178,7 @@ pub fn examine(
         &new.image,
         &tolerance,
         matcher,
+        candidate.densify,
     )
     .map_err(|e| SlamError::frontend(format!("reverse {}", stage()), e))?;
     record.reverse = Some(reverse);
@@ -224,6 +235,7 @@ mod tests {
             predicted_overlap: 0.8,
             raw_window: raw,
             wide: false,
+            densify: false,
         }
     }
 

@@ -8,6 +8,7 @@
 //! |---|---|
 //! | `from`, `to` | node ids; `S_to` was matched against `I_from` |
 //! | `examined_at` | newest node when the candidate was examined |
+//! | `densified` | `true` for a pair of the densification pass after the mission (`loops.densify`) |
 //! | `predicted_overlap` | overlap predicted from the prior (0-1) |
 //! | `prior_sigma_xy_m`, `prior_sigma_theta_deg` | standard deviations of the prior (largest xy axis; θ) |
 //! | `matched` | `true` when the matcher returned a pose |
@@ -34,10 +35,11 @@ use std::io::Write;
 use std::path::Path;
 
 /// The header of `loops.csv`, in order.
-pub const COLUMNS: [&str; 32] = [
+pub const COLUMNS: [&str; 33] = [
     "from",
     "to",
     "examined_at",
+    "densified",
     "predicted_overlap",
     "prior_sigma_xy_m",
     "prior_sigma_theta_deg",
@@ -75,6 +77,7 @@ pub struct LoopRow {
     pub from: u64,
     pub to: u64,
     pub examined_at: Option<u64>,
+    pub densified: Option<bool>,
     pub predicted_overlap: Option<f64>,
     pub matched: bool,
     /// `from_from_to` as `[x_m, y_m, theta_rad]`.
@@ -114,6 +117,7 @@ impl LoopRow {
             from: r.from,
             to: r.to,
             examined_at: Some(r.examined_at),
+            densified: Some(r.densified),
             predicted_overlap: Some(r.predicted_overlap),
             matched: r.matched.is_some(),
             pose: r.matched.map(|p| [p.x(), p.y(), p.theta()]),
@@ -174,6 +178,7 @@ impl LoopRow {
             self.from.to_string(),
             self.to.to_string(),
             self.examined_at.map(|v| v.to_string()).unwrap_or_default(),
+            self.densified.map(|v| v.to_string()).unwrap_or_default(),
             f(self.predicted_overlap),
             f(self.prior_sigma_xy_m),
             f(self.prior_sigma_theta_deg),
@@ -355,6 +360,7 @@ impl RowParser<'_> {
             from: self.required("from", self.parse("from", "a node id")?)?,
             to: self.required("to", self.parse("to", "a node id")?)?,
             examined_at: self.parse("examined_at", "a node id")?,
+            densified: self.parse("densified", "true or false")?,
             predicted_overlap: self.number("predicted_overlap")?,
             matched: self.parse("matched", "true or false")?.unwrap_or(false),
             pose: triple(["x_m", "y_m", "theta_rad"])?,
@@ -402,6 +408,7 @@ mod tests {
             from: 3,
             to: 40,
             examined_at: Some(40),
+            densified: Some(false),
             predicted_overlap: Some(0.8),
             matched: true,
             pose: Some([1.5, -0.25, 0.125]),
