@@ -2,7 +2,8 @@
 //! (200 beams x 500 bins of 0.1 m per rotation, a 30 m x 20 m basin):
 //! building `I_k` for one rotation, and one match of a scan against the
 //! image of another rotation, for a sequential-size window and for the
-//! evaluation's widest one. Targets (release, one core): `I_k` ≤ 5 ms, one
+//! evaluation's widest one, and over a loop's smallest window by search and
+//! by local climb. Targets (release, one core): `I_k` ≤ 5 ms, one
 //! match ≤ 5 ms.
 //!
 //! `cargo bench -p echofield-frontend --bench matcher`
@@ -12,7 +13,7 @@ use echofield_frontend::image::synthetic::{
     RotationPath, SceneConfig, simulate_rotation, static_rotation,
 };
 use echofield_frontend::image::{AcousticImage, ImageConfig, Interpolation};
-use echofield_frontend::matcher::{MatcherConfig, SearchWindow, match_scan};
+use echofield_frontend::matcher::{MatcherConfig, SearchWindow, match_scan, match_scan_local};
 use echofield_graph::Se2;
 use std::hint::black_box;
 
@@ -87,6 +88,12 @@ fn match_one(c: &mut Criterion) {
     group.bench_function("pipeline_window_0.5m_3deg", |bench| {
         bench.iter(|| {
             match_scan(black_box(&b.wall_points), &image, &prior, &small, &pipeline).unwrap()
+        })
+    });
+    // The same with the local climb of loop densification.
+    group.bench_function("pipeline_local_0.5m_3deg", |bench| {
+        bench.iter(|| {
+            match_scan_local(black_box(&b.wall_points), &image, &prior, &small, &pipeline).unwrap()
         })
     });
     group.finish();

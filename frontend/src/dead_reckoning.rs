@@ -5,7 +5,7 @@
 //!
 //! # Filter
 //! The constant-velocity model of Ribas et al. (the seed paper's reference
-//! [10]; equations in `dead_reckoning/model.rs`). State `(x, y, ψ, u, v, r)`:
+//! \[10\]; equations in `dead_reckoning/model.rs`). State `(x, y, ψ, u, v, r)`:
 //! `world_from_vehicle` in a local world frame whose origin is the vehicle
 //! position when the filter starts and whose orientation is that of the
 //! heading measurements, and the body velocities of the vehicle origin

@@ -10,7 +10,8 @@
 //!    y, an angle step that moves the farthest point by one cell), exact for
 //!    the score on the raster, with the max-pooled image pyramid as bounds;
 //!    the search then resumes to find the best pose *separated* from the
-//!    winner;
+//!    winner; [`match_scan_local`] climbs from the prior to the nearest
+//!    lattice maximum instead, for priors already close to the answer;
 //! 2. [`refine`]: Nelder-Mead from the best lattice pose on the score with `I`
 //!    interpolated from the samples ([`AcousticImage::fine_value_at`]): the
 //!    raster's bilinear lookup peaks on cell centres, so an estimate taken

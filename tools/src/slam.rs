@@ -3,7 +3,7 @@
 //! [`run_mission`] is what `echofield run`, `echofield demo` and the
 //! end-to-end tests call:
 //!
-//! 1. **Dead reckoning** (EKF over DVL and heading, [`dead_reckoning`]).
+//! 1. **Dead reckoning** (EKF over DVL and heading, [`dead_reckoning`](echofield_frontend::dead_reckoning)).
 //! 2. **Nodes** ([`nodes`]): the beams are cut into rotations; each rotation
 //!    the navigation covers becomes a node at its central pose, with `S_k`
 //!    and `I_k` motion-compensated into that pose (eq. 3-4), built once.

@@ -25,7 +25,7 @@ pub struct MatcherConfig {
     pub second_peak: bool,
     /// Iterations of the Nelder-Mead refinement (0 keeps the coarse pose).
     pub refine_iterations: u64,
-    /// `τ` of the covariance `Σ = τ (-H)⁻¹` (see [`covariance`]), in
+    /// `τ` of the covariance `Σ = τ (-H)⁻¹` (see [`covariance`](crate::matcher::covariance)), in
     /// intensity units; larger is more conservative. The default 1 gave a
     /// mean NEES of 2.3-5 on simulated marina and canyon missions with
     /// dead-reckoning motion compensation (as the pipeline matches), and

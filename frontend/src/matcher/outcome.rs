@@ -82,7 +82,7 @@ pub struct MatchResult {
     pub stats: MatchStats,
 }
 
-/// The outcome of [`match_scan`].
+/// The outcome of [`match_scan`](crate::matcher::match_scan).
 #[derive(Clone, Debug, PartialEq)]
 pub enum MatchOutcome {
     Match(Box<MatchResult>),

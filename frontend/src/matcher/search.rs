@@ -26,6 +26,11 @@
 //! The second search for the best *separated* peak resumes from the nodes
 //! the first one left open, skipping nodes lying entirely within
 //! `separation` of the best leaf and leaves within it.
+//!
+//! [`SearchProblem::local_max`] is the alternative for a prior already
+//! close to the answer: hill-climbing on the leaves from the prior. The
+//! per-angle cell tables are built on first use, so a climb that visits a
+//! few angles pays only for those.
 
 use crate::image::AcousticImage;
 use crate::image::grid::floor;
