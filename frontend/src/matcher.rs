@@ -7,7 +7,8 @@
 //!
 //! [`match_scan`] searches the window that the prior allows in three steps:
 //! 1. [`search`]: branch-and-bound over a discretised window (cells in x and
-//!    y, an angle step that moves the farthest point by one cell), exact for
+//!    y, an angle step that moves a point at the scan's RMS range by one
+//!    cell, the step of the covariance fit too), exact for
 //!    the score on the raster, with the max-pooled image pyramid as bounds;
 //!    the search then resumes to find the best pose *separated* from the
 //!    winner; [`match_scan_local`] climbs from the prior to the nearest
@@ -147,12 +148,10 @@ fn match_with(
     }
     let points = thin(points, config.max_points);
     let cell_m = image.cell_size_m();
-    let ranges = points.iter().map(|p| p.coords.norm());
-    let max_range_m = ranges.clone().fold(0.0, f64::max).max(cell_m);
-    let rho_m = (ranges.map(|r| r * r).sum::<f64>() / points.len() as f64)
+    let rho_m = (points.iter().map(|p| p.coords.norm_squared()).sum::<f64>() / points.len() as f64)
         .sqrt()
         .max(cell_m);
-    let angle_step_rad = config.angle_step_rad.unwrap_or(cell_m / max_range_m);
+    let angle_step_rad = config.angle_step_rad.unwrap_or(cell_m / rho_m);
     let disc = search::Discretisation {
         angle_step_rad,
         angle_steps: steps_within(window.theta_rad, angle_step_rad),

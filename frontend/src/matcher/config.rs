@@ -15,7 +15,14 @@ pub struct MatcherConfig {
     /// scan order), bounding the cost of a match.
     pub max_points: usize,
     /// Angular step of the coarse search, radians; `None` derives it as
-    /// cell size / largest point range (the farthest point moves one cell).
+    /// cell size / RMS range of the scan's points (a point at that range
+    /// moves one cell; the farthest ones move 1.5-2 cells, and the
+    /// quadratic fit or the refinement takes the pose between lattice
+    /// angles). Stepping by the farthest point instead made the matches of
+    /// a St Pere run 20% slower for no better accuracy: ATE 0.245-0.258 m
+    /// against 0.231-0.249 m over seeds 1-3; matcher success on the
+    /// simulated marina 92.7% / 85.3% (consecutive / non-consecutive)
+    /// against 93.3% / 85.0%.
     pub angle_step_rad: Option<f64>,
     /// A second peak must be farther than this from the best pose in
     /// translation (metres) *or* in angle (radians) to count as separate.
