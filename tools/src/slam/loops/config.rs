@@ -116,7 +116,7 @@ pub struct LoopConfig {
     /// | St Pere, off | 0.195-0.200 | 0.972-0.989 | 0.231-0.249 | |
     /// | St Pere, on | 0.876-0.881 | 0.986-0.991 | 0.208-0.252 | +0.5-1.4 s |
     /// | marina, off | 0.33 | 0.993-0.997 | 0.44-0.51 | |
-    /// | marina, on | 0.60-0.61 | 0.977-0.991 | 0.57-0.66 | +0.1-0.3 s |
+    /// | marina, on | 0.60-0.61 | 0.977-0.991 | 0.57-0.66 | up to +0.3 s |
     ///
     /// On the marina the extra loops repeat the same geometry-biased
     /// matches many times over and pull the trajectory with them.
