@@ -119,7 +119,9 @@ pub struct LoopConfig {
     /// | marina, on | 0.60-0.61 | 0.977-0.991 | 0.57-0.66 | up to +0.3 s |
     ///
     /// On the marina the extra loops repeat the same geometry-biased
-    /// matches many times over and pull the trajectory with them.
+    /// matches many times over and pull the trajectory with them. The
+    /// simulated canyon (seed 1) shows the same: recall 0.38 -> 0.94,
+    /// precision 1.0 -> 0.992, ATE 0.183 -> 0.224 m.
     pub densify: bool,
     /// Densification considers a pair only when its search window
     /// (`n_sigma` standard deviations of the relative uncertainty) is
