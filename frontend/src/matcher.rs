@@ -278,6 +278,24 @@ mod tests {
         .unwrap()
     }
 
+    /// A rotation of `scene` from a random pose within 2.5 m, 2 m and
+    /// 0.25 rad of the origin, and its true pose relative to `a`.
+    fn offset_rotation(
+        scene: &SceneConfig,
+        a: &SyntheticRotation,
+        rng: &mut ChaCha8Rng,
+        seed: u64,
+    ) -> (SyntheticRotation, Se2) {
+        let world_from_b = Se2::new(
+            rng.random_range(-2.5..2.5),
+            rng.random_range(-2.0..2.0),
+            rng.random_range(-0.25..0.25),
+        );
+        let b = simulate_rotation(scene, &RotationPath::fixed(world_from_b), seed);
+        let truth = a.world_from_reference.between(&b.world_from_reference);
+        (b, truth)
+    }
+
     fn pose_error(a: &Se2, b: &Se2) -> (f64, f64) {
         let d = a.between(b);
         (d.translation().norm(), d.theta().abs())
@@ -324,13 +342,7 @@ mod tests {
         let image = image_of(&a);
         let mut rng = ChaCha8Rng::seed_from_u64(21);
         for trial in 0..8 {
-            let world_from_b = Se2::new(
-                rng.random_range(-2.5..2.5),
-                rng.random_range(-2.0..2.0),
-                rng.random_range(-0.25..0.25),
-            );
-            let b = simulate_rotation(&scene, &RotationPath::fixed(world_from_b), 100 + trial);
-            let truth = a.world_from_reference.between(&b.world_from_reference);
+            let (b, truth) = offset_rotation(&scene, &a, &mut rng, 100 + trial);
             let prior = truth.compose(&Se2::new(
                 rng.random_range(-1.5..1.5),
                 rng.random_range(-1.5..1.5),
@@ -373,13 +385,7 @@ mod tests {
         };
         let mut rng = ChaCha8Rng::seed_from_u64(22);
         for trial in 0..8 {
-            let world_from_b = Se2::new(
-                rng.random_range(-2.5..2.5),
-                rng.random_range(-2.0..2.0),
-                rng.random_range(-0.25..0.25),
-            );
-            let b = simulate_rotation(&scene, &RotationPath::fixed(world_from_b), 200 + trial);
-            let truth = a.world_from_reference.between(&b.world_from_reference);
+            let (b, truth) = offset_rotation(&scene, &a, &mut rng, 200 + trial);
             let prior = truth.compose(&Se2::new(
                 rng.random_range(-0.3..0.3),
                 rng.random_range(-0.3..0.3),

@@ -467,6 +467,27 @@ mod tests {
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 
+    /// A 40 x 40 image of 0.2 m cells, each an echo of random strength
+    /// with probability `density`, and 25 random scan points within 3 m.
+    fn random_image_and_scan(
+        rng: &mut ChaCha8Rng,
+        density: f64,
+    ) -> (AcousticImage, Vec<Point2<f64>>) {
+        let mut grid = Grid::zeros(-4.0, -4.0, 0.2, 40, 40);
+        for v in grid.values_mut() {
+            *v = if rng.random_bool(density) {
+                rng.random()
+            } else {
+                0.0
+            };
+        }
+        let image = AcousticImage::from_grid(grid, 4);
+        let points = (0..25)
+            .map(|_| Point2::new(rng.random_range(-3.0..3.0), rng.random_range(-3.0..3.0)))
+            .collect();
+        (image, points)
+    }
+
     /// The climb ends at a leaf no neighbour beats, never below the
     /// prior's leaf, evaluating each leaf at most once.
     #[test]
@@ -480,18 +501,7 @@ mod tests {
         };
         let leaves = 7 * 15 * 11;
         for trial in 0..10 {
-            let mut grid = Grid::zeros(-4.0, -4.0, 0.2, 40, 40);
-            for v in grid.values_mut() {
-                *v = if rng.random_bool(0.3) {
-                    rng.random()
-                } else {
-                    0.0
-                };
-            }
-            let image = AcousticImage::from_grid(grid, 4);
-            let points: Vec<Point2<f64>> = (0..25)
-                .map(|_| Point2::new(rng.random_range(-3.0..3.0), rng.random_range(-3.0..3.0)))
-                .collect();
+            let (image, points) = random_image_and_scan(&mut rng, 0.3);
             let prior = Se2::new(rng.random_range(-0.5..0.5), 0.0, 0.3);
             let problem = SearchProblem::new(&points, &image, &prior, &disc);
             let mut stats = SearchStats::default();
@@ -523,18 +533,7 @@ mod tests {
     fn branch_and_bound_finds_the_exhaustive_best() {
         let mut rng = ChaCha8Rng::seed_from_u64(4);
         for trial in 0..6 {
-            let mut grid = Grid::zeros(-4.0, -4.0, 0.2, 40, 40);
-            for v in grid.values_mut() {
-                *v = if rng.random_bool(0.15) {
-                    rng.random()
-                } else {
-                    0.0
-                };
-            }
-            let image = AcousticImage::from_grid(grid, 4);
-            let points: Vec<Point2<f64>> = (0..25)
-                .map(|_| Point2::new(rng.random_range(-3.0..3.0), rng.random_range(-3.0..3.0)))
-                .collect();
+            let (image, points) = random_image_and_scan(&mut rng, 0.15);
             let prior = Se2::new(
                 rng.random_range(-0.5..0.5),
                 rng.random_range(-0.5..0.5),

@@ -210,7 +210,7 @@ impl<'a> LoopCloser<'a> {
             return Ok(false);
         }
         let before = self.dense.len();
-        let (max, min) = (&self.config.densify_max_window, &self.config.min_window);
+        let min = &self.config.min_window;
         for k in sep..n {
             if !nodes[k].matchable() {
                 continue;
@@ -223,8 +223,7 @@ impl<'a> LoopCloser<'a> {
             let path = estimate.links().relative_from(k, poses);
             for (j, overlap) in pairs {
                 let mut c = self.candidate(j, k, overlap, path[j].as_ref(), poses);
-                let w = &c.raw_window;
-                if w.x_m > max.x_m || w.y_m > max.y_m || w.theta_rad > max.theta_rad {
+                if c.too_uncertain(&self.config.densify_max_window) {
                     continue;
                 }
                 c.raw_window = min.search();
