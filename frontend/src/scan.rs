@@ -24,14 +24,17 @@
 //! let frames = reference_from_beams(&beams, &nav, &SensorMounting::default(), 7.0).unwrap();
 //! let scan = build_scan(&beams, &frames, 7.0, &SegmentationConfig::default()).unwrap();
 //! assert_eq!(scan.points.len(), 200);
-//! assert!((scan.points[0].coords.norm() - 8.0).abs() < 1e-9);
+//! // 8 m, plus 4 mm of beam-width correction (a ring seen at normal incidence).
+//! let range = scan.points[0].coords.norm();
+//! assert!((range - 8.0 - f64::from(scan.range_corrections_m[0])).abs() < 1e-9);
+//! assert!((range - 8.004).abs() < 1e-3);
 //! ```
 
 use crate::error::FrontendError;
 use crate::segmentation::{RangeReturn, SegmentationConfig, extract_ranges_into};
 use crate::sensors::SonarBeam;
 use echofield_graph::Se2;
-use nalgebra::Point2;
+use nalgebra::{Point2, Vector2};
 
 /// The scan `S_k`: points in metres in the vehicle frame at the reference
 /// time, with the intensity and source beam of each.
@@ -45,6 +48,10 @@ pub struct Scan {
     pub intensities: Vec<f32>,
     /// Index of each point's beam in the beam slice given to [`build_scan`].
     pub beam_indices: Vec<u32>,
+    /// How far each point was moved outward along its beam by the
+    /// beam-width correction ([`beam_width`]), metres; empty when none was
+    /// applied.
+    pub range_corrections_m: Vec<f32>,
 }
 
 impl Scan {
@@ -55,12 +62,44 @@ impl Scan {
     pub fn is_empty(&self) -> bool {
         self.points.is_empty()
     }
+
+    /// An empty scan at `reference_stamp_s`.
+    pub fn empty(reference_stamp_s: f64) -> Self {
+        Self {
+            reference_stamp_s,
+            points: Vec::new(),
+            intensities: Vec::new(),
+            beam_indices: Vec::new(),
+            range_corrections_m: Vec::new(),
+        }
+    }
+
+    /// The beam frames to build this rotation's image with, so that it
+    /// agrees with the scan: each frame of `reference_from_beams` moved
+    /// along its beam by the correction of its beam's return (the first
+    /// one, with several returns per beam). Beams without a return keep
+    /// their frame.
+    pub fn image_frames(&self, reference_from_beams: &[Se2]) -> Vec<Se2> {
+        let mut frames = reference_from_beams.to_vec();
+        let mut last = None;
+        for (&b, &dr) in self.beam_indices.iter().zip(&self.range_corrections_m) {
+            if last != Some(b)
+                && let Some(frame) = frames.get_mut(b as usize)
+            {
+                *frame = frame.compose(&Se2::new(f64::from(dr), 0.0, 0.0));
+            }
+            last = Some(b);
+        }
+        frames
+    }
 }
 
 /// Builds `S_k` from the beams of one rotation and their frames
 /// `reference_from_beams` (from [`crate::motion::reference_from_beams`] at
 /// `reference_stamp_s`): each return `r` of beam `j` becomes the point
-/// `reference_from_beams[j] · (r.range_m, 0)`.
+/// `reference_from_beams[j] · (r.range_m + Δr, 0)`, `Δr` the beam-width
+/// correction of `config.beam_width` ([`beam_width`]; 0 when it is off),
+/// kept in [`Scan::range_corrections_m`].
 ///
 /// Errors: invalid config; slices of different lengths; a beam with a
 /// non-finite or non-positive bin size or a non-finite first-bin range, or
@@ -88,10 +127,8 @@ pub fn build_scan(
         ));
     }
     let mut scan = Scan {
-        reference_stamp_s,
         points: Vec::with_capacity(beams.len() * config.max_peaks.min(4)),
-        intensities: Vec::new(),
-        beam_indices: Vec::new(),
+        ..Scan::empty(reference_stamp_s)
     };
     let (mut smoothed, mut returns): (Vec<f32>, Vec<RangeReturn>) = (Vec::new(), Vec::new());
     for (j, (beam, frame)) in beams.iter().zip(reference_from_beams).enumerate() {
@@ -104,6 +141,22 @@ pub fn build_scan(
             scan.points.push(Point2::new(x, y));
             scan.intensities.push(r.intensity);
             scan.beam_indices.push(j as u32);
+        }
+    }
+    if config.beam_width.enabled {
+        scan.range_corrections_m = beam_width::corrections(
+            &scan.points,
+            &scan.beam_indices,
+            reference_from_beams,
+            &config.beam_width,
+        );
+        for ((p, &b), &dr) in scan
+            .points
+            .iter_mut()
+            .zip(&scan.beam_indices)
+            .zip(&scan.range_corrections_m)
+        {
+            *p += reference_from_beams[b as usize].rotation() * Vector2::new(f64::from(dr), 0.0);
         }
     }
     if scan.points.len() < config.min_scan_points {
@@ -141,5 +194,6 @@ fn check_beam(j: usize, beam: &SonarBeam, frame: &Se2) -> Result<(), FrontendErr
     Ok(())
 }
 
+pub mod beam_width;
 #[cfg(test)]
 mod tests;

@@ -34,6 +34,7 @@
 //! scan and an image built from the same beams agree exactly.
 
 use crate::error::FrontendError;
+use crate::scan::beam_width::BeamWidthCorrection;
 use crate::sensors::SonarBeam;
 use serde::{Deserialize, Serialize};
 
@@ -83,6 +84,9 @@ pub struct SegmentationConfig {
     /// `build_scan` fails with `FrontendError::TooFewRanges` when a rotation
     /// gives fewer points than this. Default 10.
     pub min_scan_points: usize,
+    /// The correction `build_scan` applies to the ranges for the width of
+    /// the beam ([`crate::scan::beam_width`]); on by default.
+    pub beam_width: BeamWidthCorrection,
 }
 
 impl Default for SegmentationConfig {
@@ -98,6 +102,7 @@ impl Default for SegmentationConfig {
             min_peak_separation_m: 1.0,
             smoothing_bins: 3,
             min_scan_points: 10,
+            beam_width: BeamWidthCorrection::default(),
         }
     }
 }
@@ -156,7 +161,7 @@ impl SegmentationConfig {
                 "must be >= 1 (1 = no smoothing)",
             ));
         }
-        Ok(())
+        self.beam_width.validate()
     }
 }
 

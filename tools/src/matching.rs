@@ -206,46 +206,58 @@ impl MissionRotations {
         .with_context(|| format!("motion compensation of rotation {k}"))
     }
 
-    /// `S_k` and `I_k` of rotation `k`.
+    /// `S_k` and `I_k` of rotation `k`. The image is built with the scan's
+    /// [`Scan::image_frames`], so that the two agree.
     pub fn scan_and_image(
         &self,
         k: usize,
         config: &MatchingConfig,
     ) -> Result<(Scan, AcousticImage)> {
-        let rotation = self.rotation(k)?;
-        let beams = &self.mission.beams[rotation.beams.clone()];
         let frames = self.frames(k)?;
-        let scan = build_scan(
-            beams,
-            &frames,
-            rotation.reference_stamp_s,
-            &config.segmentation,
-        )
-        .with_context(|| format!("scan of rotation {k}"))?;
-        let image = AcousticImage::build(beams, &frames, &config.image)
-            .with_context(|| format!("acoustic image of rotation {k}"))?;
+        let scan = self.scan_with(k, &frames, config)?;
+        let image = self.image_with(k, &scan.image_frames(&frames), config)?;
         Ok((scan, image))
     }
 
-    /// `I_k` alone.
+    /// `I_k` alone, built as [`MissionRotations::scan_and_image`] builds it
+    /// (from the beam frames that its scan corrected; the uncorrected ones
+    /// when the rotation has too few ranges for a scan).
     pub fn image(&self, k: usize, config: &MatchingConfig) -> Result<AcousticImage> {
-        let rotation = self.rotation(k)?;
-        let beams = &self.mission.beams[rotation.beams.clone()];
-        AcousticImage::build(beams, &self.frames(k)?, &config.image)
-            .with_context(|| format!("acoustic image of rotation {k}"))
+        let frames = self.frames(k)?;
+        let frames = match self.scan_with(k, &frames, config) {
+            Ok(scan) => scan.image_frames(&frames),
+            Err(_) => frames,
+        };
+        self.image_with(k, &frames, config)
     }
 
     /// `S_k` alone.
     pub fn scan(&self, k: usize, config: &MatchingConfig) -> Result<Scan> {
+        self.scan_with(k, &self.frames(k)?, config)
+    }
+
+    fn scan_with(&self, k: usize, frames: &[Se2], config: &MatchingConfig) -> Result<Scan> {
         let rotation = self.rotation(k)?;
         let beams = &self.mission.beams[rotation.beams.clone()];
         build_scan(
             beams,
-            &self.frames(k)?,
+            frames,
             rotation.reference_stamp_s,
             &config.segmentation,
         )
         .with_context(|| format!("scan of rotation {k}"))
+    }
+
+    fn image_with(
+        &self,
+        k: usize,
+        frames: &[Se2],
+        config: &MatchingConfig,
+    ) -> Result<AcousticImage> {
+        let rotation = self.rotation(k)?;
+        let beams = &self.mission.beams[rotation.beams.clone()];
+        AcousticImage::build(beams, frames, &config.image)
+            .with_context(|| format!("acoustic image of rotation {k}"))
     }
 
     /// Dead-reckoning prior of `image_from_scan` for `S_scan` on `I_image`,

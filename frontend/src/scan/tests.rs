@@ -2,6 +2,7 @@ use super::*;
 use crate::dead_reckoning::Navigation;
 use crate::image::synthetic::{RotationPath, SceneConfig, simulate_rotation};
 use crate::motion::{reference_from_beams, uncompensated_reference_from_beams};
+use crate::scan::beam_width::BeamWidthCorrection;
 use crate::segmentation::PeakMode;
 use crate::sensors::SensorMounting;
 use nalgebra::{Matrix2, Vector2};
@@ -30,9 +31,11 @@ fn each_return_lands_at_its_bin_endpoint_in_the_beam_frame() {
     let config = SegmentationConfig {
         mode: PeakMode::Multiple,
         min_scan_points: 3,
+        beam_width: BeamWidthCorrection::off(),
         ..SegmentationConfig::default()
     };
     let scan = build_scan(&beams, &frames, 42.0, &config).unwrap();
+    assert!(scan.range_corrections_m.is_empty());
     assert_eq!(scan.reference_stamp_s, 42.0);
     assert_eq!(scan.beam_indices, vec![0, 1, 1]);
     let expected = [(1.0, 5.0), (4.0, 0.0), (14.0, 0.0)];
@@ -192,4 +195,51 @@ fn inconsistent_or_invalid_input_is_an_error_naming_the_beam() {
         build_scan(&beams, &frames, 0.0, &bad_config),
         Err(FrontendError::InvalidConfig { .. })
     ));
+}
+
+#[test]
+fn the_beam_width_correction_moves_returns_along_their_beams_and_the_image_frames_with_them() {
+    // A wall y = 8 m seen by beams at 30-150°: incidences up to 60°.
+    let frames: Vec<Se2> = (30..=150)
+        .map(|deg| Se2::new(0.5, -0.2, f64::from(deg).to_radians()))
+        .collect();
+    let beams: Vec<SonarBeam> = frames
+        .iter()
+        .map(|f| {
+            let bin = ((8.2 / f.theta().sin()) / 0.1).round() as usize - 1;
+            beam(f.theta(), &[(bin, 200)])
+        })
+        .collect();
+    let at_bins = |beam_width| {
+        let config = SegmentationConfig {
+            beam_width,
+            ..SegmentationConfig::default()
+        };
+        build_scan(&beams, &frames, 0.0, &config).unwrap()
+    };
+    let plain = at_bins(BeamWidthCorrection::off());
+    let corrected = at_bins(BeamWidthCorrection::default());
+    assert_eq!(corrected.range_corrections_m.len(), plain.len());
+    let image_frames = corrected.image_frames(&frames);
+    for i in 0..plain.len() {
+        let b = corrected.beam_indices[i] as usize;
+        let axis = frames[b].rotation() * Vector2::x();
+        let moved = corrected.points[i] - plain.points[i];
+        let dr = f64::from(corrected.range_corrections_m[i]);
+        // Outward along the beam, by the recorded amount.
+        assert!((moved - axis * dr).norm() < 1e-9, "return {i}");
+        assert!(dr > 0.0);
+        // The image frame of the beam moved by the same amount.
+        let shift = image_frames[b].translation() - frames[b].translation();
+        assert!((shift - axis * dr).norm() < 1e-9, "frame {b}");
+        assert!((image_frames[b].theta() - frames[b].theta()).abs() < 1e-12);
+    }
+    // Oblique beams are moved more than the beam at normal incidence.
+    let by_beam = |deg: usize| corrected.range_corrections_m[deg - 30];
+    assert!(
+        by_beam(40) > 5.0 * by_beam(90),
+        "{} vs {}",
+        by_beam(40),
+        by_beam(90)
+    );
 }

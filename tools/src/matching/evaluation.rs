@@ -35,7 +35,9 @@ use anyhow::Result;
 use echofield_frontend::icp::{IcpConfig, icp, kdtree::KdTree};
 use echofield_frontend::matcher::{MatchOutcome, SearchWindow, match_scan, mean_score};
 use echofield_frontend::motion::reference_from_beams;
+use echofield_frontend::scan::beam_width::BeamWidthCorrection;
 use echofield_frontend::scan::{Scan, build_scan};
+use echofield_frontend::segmentation::SegmentationConfig;
 use echofield_graph::{Se2, wrap_angle};
 use nalgebra::{Matrix2, Point2, Vector2, Vector3};
 use rand::seq::SliceRandom;
@@ -296,10 +298,14 @@ pub fn evaluate(
 }
 
 /// Scans built with the ground truth as navigation (exact motion
-/// compensation), for choosing pairs independently of the navigation
-/// evaluated.
+/// compensation) and without the beam-width correction, for choosing pairs
+/// independently of the navigation and of the range correction evaluated.
 fn exact_scans(mission: &MissionRotations, config: &MatchingConfig) -> Result<Vec<Option<Scan>>> {
     let truth = super::navigation_eval::ground_truth_navigation(&mission.mission)?;
+    let segmentation = SegmentationConfig {
+        beam_width: BeamWidthCorrection::off(),
+        ..config.segmentation.clone()
+    };
     Ok(mission
         .rotations
         .iter()
@@ -308,7 +314,7 @@ fn exact_scans(mission: &MissionRotations, config: &MatchingConfig) -> Result<Ve
             let t_ref = rotation.reference_stamp_s;
             let frames =
                 reference_from_beams(beams, &truth, &mission.mission.mounting, t_ref).ok()?;
-            build_scan(beams, &frames, t_ref, &config.segmentation).ok()
+            build_scan(beams, &frames, t_ref, &segmentation).ok()
         })
         .collect())
 }

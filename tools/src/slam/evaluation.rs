@@ -297,6 +297,7 @@ mod tests {
             points,
             intensities: vec![100.0; n],
             beam_indices: (0..n as u32).collect(),
+            range_corrections_m: Vec::new(),
         }
     }
 

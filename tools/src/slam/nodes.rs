@@ -131,15 +131,11 @@ fn build_node(
         &config.segmentation,
     ) {
         Ok(scan) => scan,
-        Err(FrontendError::TooFewRanges { .. }) => Scan {
-            reference_stamp_s: rotation.reference_stamp_s,
-            points: Vec::new(),
-            intensities: Vec::new(),
-            beam_indices: Vec::new(),
-        },
+        Err(FrontendError::TooFewRanges { .. }) => Scan::empty(rotation.reference_stamp_s),
         Err(e) => return Err(fatal(e)),
     };
-    let image = AcousticImage::build(beams, &frames, &config.image).map_err(fatal)?;
+    let image =
+        AcousticImage::build(beams, &scan.image_frames(&frames), &config.image).map_err(fatal)?;
     let footprint_m = footprint(&scan);
     let in_dvl_gap = navigation
         .dvl_gaps()
@@ -216,15 +212,11 @@ mod tests {
             points: (1..=11).map(|i| Point2::new(0.0, i as f64)).collect(),
             intensities: vec![100.0; 11],
             beam_indices: (0..11).collect(),
+            range_corrections_m: Vec::new(),
         };
         // Ranges 1..=11, index round(10 * 0.9) = 9: the tenth, 10 m.
         assert_eq!(footprint(&scan), 10.0);
-        let empty = Scan {
-            points: Vec::new(),
-            intensities: Vec::new(),
-            beam_indices: Vec::new(),
-            ..scan
-        };
+        let empty = Scan::empty(0.0);
         assert_eq!(footprint(&empty), 0.0);
     }
 }
