@@ -113,15 +113,15 @@ pub struct LoopConfig {
     ///
     /// | | recall (pairs) | precision | ATE (m) | time |
     /// |---|---|---|---|---|
-    /// | St Pere, off | 0.195-0.200 | 0.972-0.989 | 0.231-0.249 | |
-    /// | St Pere, on | 0.876-0.881 | 0.986-0.991 | 0.208-0.252 | +0.5-1.4 s |
-    /// | marina, off | 0.33 | 0.993-0.997 | 0.44-0.51 | |
-    /// | marina, on | 0.60-0.61 | 0.977-0.991 | 0.57-0.66 | up to +0.3 s |
+    /// | St Pere, off | 0.196-0.199 | 0.977-0.985 | 0.211-0.237 | |
+    /// | St Pere, on | 0.878-0.884 | 0.985-0.991 | 0.181-0.233 | about +1 s |
+    /// | marina, off | 0.33 | 0.993-1.0 | 0.41-0.52 | |
+    /// | marina, on | 0.59-0.62 | 0.975-0.989 | 0.58-0.60 | up to +0.3 s |
     ///
     /// On the marina the extra loops repeat the same geometry-biased
     /// matches many times over and pull the trajectory with them. The
-    /// simulated canyon (seed 1) shows the same: recall 0.38 -> 0.94,
-    /// precision 1.0 -> 0.992, ATE 0.183 -> 0.224 m.
+    /// simulated canyon (seed 1) shows the same: recall 0.39 -> 0.95,
+    /// precision 1.0 -> 0.992, ATE 0.172 -> 0.208 m.
     pub densify: bool,
     /// Densification considers a pair only when its search window
     /// (`n_sigma` standard deviations of the relative uncertainty) is
