@@ -102,9 +102,9 @@ fn marina_mission_is_five_times_better_than_dead_reckoning() {
     assert!((report.ate_rmse_m.unwrap() - slam).abs() < 1e-6);
 
     // Loops: many, nearly all within the true-positive tolerances (0.5 m,
-    // 3 deg), none grossly wrong. Measured on seed 1: ATE 0.518 m (dead
-    // reckoning 2.816 m), precision 1.0 (seeds 2 and 3: 0.993 and 1.0),
-    // recall 0.335 of the overlapping node pairs and 0.935 of the revisits;
+    // 3 deg), none grossly wrong. Measured on seed 1: ATE 0.481 m (dead
+    // reckoning 2.816 m, 5.9x), precision 0.997 (one loop 0.51 m off),
+    // recall 0.342 of the overlapping node pairs and 0.935 of the revisits;
     // the recall target (0.9 of the pairs) is not met: each node
     // is matched against at most 4 older ones.
     assert!(

@@ -4,7 +4,7 @@
 
 use super::DeadReckoningConfig;
 use super::model::{self, PSI, ProcessNoise, R, U, V, X, Y, pose_block, symmetric6};
-use super::navigation::{DvlGap, Navigation, NavigationStep};
+use super::navigation::{DvlGap, HeadingBias, Navigation, NavigationStep};
 use super::smoother::{self, Prediction};
 use crate::error::FrontendError;
 use crate::sensors::{Attitude, DvlVelocity, Mission, SensorMounting};
@@ -428,6 +428,10 @@ pub(super) fn filter(
     let mut navigation =
         Navigation::from_steps(steps, gaps, config.max_extrapolation_s, ekf.noise, smoothed);
     navigation.set_dvl_gated(gated);
+    navigation.set_heading_bias(HeadingBias {
+        sigma_rad: config.heading_bias_sigma_rad,
+        time_constant_s: config.heading_bias_time_constant_s,
+    });
     Ok(navigation)
 }
 

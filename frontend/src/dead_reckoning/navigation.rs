@@ -69,6 +69,28 @@ pub struct Navigation {
     smoothed: bool,
     /// Valid DVL samples the filter's innovation gate rejected.
     dvl_gated: usize,
+    /// The heading unit's wandering error, outside the filter.
+    heading_bias: HeadingBias,
+}
+
+/// A Gauss-Markov heading error the filter does not estimate (see
+/// [`Navigation::relative`]); zero for navigations from known poses.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct HeadingBias {
+    /// Standard deviation, rad.
+    pub sigma_rad: f64,
+    /// Correlation time, s.
+    pub time_constant_s: f64,
+}
+
+impl HeadingBias {
+    /// Variance of the error's change over `dt_s`: `2σ²(1 − e^{−|dt|/τ})`.
+    pub fn change_variance(&self, dt_s: f64) -> f64 {
+        if self.sigma_rad == 0.0 || self.time_constant_s <= 0.0 {
+            return 0.0;
+        }
+        2.0 * self.sigma_rad * self.sigma_rad * (1.0 - (-dt_s.abs() / self.time_constant_s).exp())
+    }
 }
 
 enum Location {
@@ -99,6 +121,7 @@ impl Navigation {
             noise,
             smoothed,
             dvl_gated: 0,
+            heading_bias: HeadingBias::default(),
         }
     }
 
@@ -226,6 +249,16 @@ impl Navigation {
         self.dvl_gated = count;
     }
 
+    pub(crate) fn set_heading_bias(&mut self, bias: HeadingBias) {
+        self.heading_bias = bias;
+    }
+
+    /// The heading error outside the filter that [`Navigation::relative`]
+    /// accounts for.
+    pub fn heading_bias(&self) -> HeadingBias {
+        self.heading_bias
+    }
+
     /// `world_from_vehicle` at `stamp_s` (see the type doc for interpolation
     /// and extrapolation).
     pub fn pose_at(&self, stamp_s: f64) -> Result<Se2, FrontendError> {
@@ -259,6 +292,14 @@ impl Navigation {
     /// `between`. Uncertainty common to both ends (everything accumulated
     /// before `from_s`) cancels, which is what an odometry edge of a pose
     /// graph needs.
+    ///
+    /// The heading unit's wandering error ([`HeadingBias`], not in the
+    /// filter) then adds the variance `q` of its change over the interval,
+    /// `2σ²(1 − e^{−Δt/τ})`, along `J = (−y/2, x/2, 1)` for the relative
+    /// translation `(x, y)`: the heading error grows through the interval,
+    /// and the path turns with it by half the change on average. Without
+    /// it, the simulated marina's odometry claimed 0.25° over a node
+    /// interval against 0.49° RMS of actual error.
     pub fn relative(&self, from_s: f64, to_s: f64) -> Result<(Se2, Matrix3<f64>), FrontendError> {
         if from_s > to_s {
             let (to_from_from, cov) = self.relative(to_s, from_s)?;
@@ -292,6 +333,8 @@ impl Navigation {
         let mixed = j_b * cross * j_a.transpose();
         let cov =
             j_a * p_a * j_a.transpose() + j_b * p_b * j_b.transpose() + mixed + mixed.transpose();
+        let bias = Vector3::new(-0.5 * rel.y(), 0.5 * rel.x(), 1.0);
+        let cov = cov + bias * bias.transpose() * self.heading_bias.change_variance(to_s - from_s);
         Ok((rel, symmetric(cov)))
     }
 

@@ -86,6 +86,11 @@ pub struct SyntheticNavConfig {
     pub heading_noise_rad: f64,
     /// Constant error added to every reported yaw, rad.
     pub heading_bias_rad: f64,
+    /// A wandering error added to every reported yaw: a Gauss-Markov
+    /// process of this standard deviation (rad; 0 = none) ...
+    pub heading_wander_sigma_rad: f64,
+    /// ... and this correlation time, s.
+    pub heading_wander_time_constant_s: f64,
     /// Attitude samples carry the true yaw rate (plus `yaw_rate_noise_radps`).
     pub with_yaw_rate: bool,
     pub yaw_rate_noise_radps: f64,
@@ -105,6 +110,8 @@ impl Default for SyntheticNavConfig {
             dvl_noise_mps: 0.0,
             heading_noise_rad: 0.0,
             heading_bias_rad: 0.0,
+            heading_wander_sigma_rad: 0.0,
+            heading_wander_time_constant_s: 120.0,
             with_yaw_rate: true,
             yaw_rate_noise_radps: 0.0,
             dvl_dropouts_s: Vec::new(),
@@ -154,19 +161,30 @@ pub fn synthetic_mission(path: &SyntheticPath, config: &SyntheticNavConfig, seed
             }
         })
         .collect();
+    // The wander starts from its stationary distribution and is exact at
+    // the sample period: b' = a·b + √(σ²(1 − a²))·n, a = e^{−Δt/τ}.
+    let sigma_b = config.heading_wander_sigma_rad;
+    let decay = (-config.attitude_period_s / config.heading_wander_time_constant_s).exp();
+    let mut wander = sigma_b * normal(1.0).sample(&mut rng);
+    let wander_step = normal(sigma_b * (1.0 - decay * decay).sqrt());
     let attitude = samples(config.attitude_period_s)
-        .map(|t| Attitude {
-            stamp_s: config.start_s + t,
-            roll_rad: 0.0,
-            pitch_rad: 0.0,
-            yaw_rad: wrap_angle(
+        .map(|t| {
+            let yaw = wrap_angle(
                 path.world_from_vehicle(t).theta()
                     + config.heading_bias_rad
+                    + wander
                     + heading_noise.sample(&mut rng),
-            ),
-            yaw_rate_radps: config
-                .with_yaw_rate
-                .then(|| w + rate_noise.sample(&mut rng)),
+            );
+            wander = decay * wander + wander_step.sample(&mut rng);
+            Attitude {
+                stamp_s: config.start_s + t,
+                roll_rad: 0.0,
+                pitch_rad: 0.0,
+                yaw_rad: yaw,
+                yaw_rate_radps: config
+                    .with_yaw_rate
+                    .then(|| w + rate_noise.sample(&mut rng)),
+            }
         })
         .collect();
     let ground_truth = samples(config.attitude_period_s)

@@ -108,20 +108,23 @@ pub struct LoopConfig {
     /// (loop densification, [`LoopCloser::densify`](crate::slam::loops::LoopCloser::densify)):
     /// loops between all the rotations of a revisited place, not only the
     /// `max_candidates_per_node` best. A pair costs about 0.3 ms (a local
-    /// climb instead of a search of the window). Default false: it pays on
-    /// the St Pere replay and not on the simulated marina. Seeds 1-3:
+    /// climb instead of a search of the window). Default false: it buys
+    /// recall at the cost of accuracy on every simulated mission. Seeds
+    /// 1-3:
     ///
     /// | | recall (pairs) | precision | ATE (m) | time |
     /// |---|---|---|---|---|
-    /// | St Pere, off | 0.196-0.199 | 0.977-0.985 | 0.211-0.237 | |
-    /// | St Pere, on | 0.878-0.884 | 0.985-0.991 | 0.181-0.233 | about +1 s |
-    /// | marina, off | 0.33 | 0.993-1.0 | 0.41-0.52 | |
-    /// | marina, on | 0.59-0.62 | 0.975-0.989 | 0.58-0.60 | up to +0.3 s |
+    /// | St Pere, off | 0.198-0.199 | 0.975-0.985 | 0.191-0.230 | |
+    /// | St Pere, on | 0.861-0.875 | 0.986-0.991 | 0.207-0.250 | about +1 s |
+    /// | marina, off | 0.33-0.34 | 0.993-0.997 | 0.32-0.48 | |
+    /// | marina, on | 0.58-0.62 | 0.970-0.979 | 0.56-0.66 | up to +0.3 s |
     ///
     /// On the marina the extra loops repeat the same geometry-biased
     /// matches many times over and pull the trajectory with them. The
     /// simulated canyon (seed 1) shows the same: recall 0.39 -> 0.95,
-    /// precision 1.0 -> 0.992, ATE 0.172 -> 0.208 m.
+    /// precision 1.0 -> 0.997, ATE 0.153 -> 0.210 m. (Before the heading
+    /// units' wander was in the odometry covariance, densification did
+    /// improve St Pere: 0.181-0.233 m against 0.211-0.237 m.)
     pub densify: bool,
     /// Densification considers a pair only when its search window
     /// (`n_sigma` standard deviations of the relative uncertainty) is
