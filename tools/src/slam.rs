@@ -50,6 +50,7 @@ pub mod evaluation;
 pub mod loops;
 pub mod nodes;
 pub mod outputs;
+pub mod refine;
 pub mod result;
 pub mod sequential;
 pub mod symmetric;

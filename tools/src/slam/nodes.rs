@@ -65,17 +65,20 @@ impl NodeData {
     }
 }
 
-/// Builds the nodes of every rotation the navigation covers.
-/// Returns the nodes in rotation order and the rotations left out.
+/// Builds the nodes of every rotation the navigation covers, placing the
+/// beams with `compensation` (the dead reckoning itself, or the refined
+/// navigation of [`super::refine`]) and the nodes at the dead reckoning's
+/// poses. Returns the nodes in rotation order and the rotations left out.
 pub fn build_nodes(
     mission: &Mission,
     rotations: &[Rotation],
     navigation: &Navigation,
+    compensation: &Navigation,
     config: &SlamConfig,
 ) -> Result<(Vec<NodeData>, Vec<SkippedRotation>), SlamError> {
     let built: Vec<Result<NodeData, Skip>> = rotations
         .par_iter()
-        .map(|rotation| build_node(mission, rotation, navigation, config))
+        .map(|rotation| build_node(mission, rotation, navigation, compensation, config))
         .collect();
     let mut nodes = Vec::with_capacity(built.len());
     let mut skipped = Vec::new();
@@ -105,6 +108,7 @@ fn build_node(
     mission: &Mission,
     rotation: &Rotation,
     navigation: &Navigation,
+    compensation: &Navigation,
     config: &SlamConfig,
 ) -> Result<NodeData, Skip> {
     let stage = || format!("rotation {}", rotation.index);
@@ -116,7 +120,7 @@ fn build_node(
     let beams = &mission.beams[rotation.beams.clone()];
     let frames = reference_from_beams(
         beams,
-        navigation,
+        compensation,
         &mission.mounting,
         rotation.reference_stamp_s,
     )

@@ -6,6 +6,7 @@ use super::estimate::Estimate;
 use super::evaluation::evaluate;
 use super::loops::LoopCloser;
 use super::nodes::{NodeData, build_nodes};
+use super::refine::refined_navigation;
 use super::result::{
     DEAD_RECKONING_RATE_HZ, NodeRecord, ROBUST_WEIGHT_REJECTED, RejectReason, Report,
     SequentialRecord, SkippedRotation, SlamOutput, SolverReport, StageTimings, TimeGap,
@@ -13,7 +14,7 @@ use super::result::{
 use super::{ProgressSink, SlamError, check_sensors, sequential};
 use echofield_backend::edge_error;
 use echofield_frontend::dead_reckoning::{self, Navigation};
-use echofield_frontend::rotation::assemble_rotations;
+use echofield_frontend::rotation::{Rotation, assemble_rotations};
 use echofield_frontend::sensors::Mission;
 use echofield_graph::{EdgeKind, PoseGraph, Se2};
 use std::collections::BTreeMap;
@@ -47,7 +48,6 @@ fn run(
     config.validate()?;
     check_sensors(mission)?;
     let mut timings = StageTimings::default();
-    let mut warnings = Vec::new();
 
     progress.stage("dead reckoning");
     let t = Instant::now();
@@ -55,78 +55,54 @@ fn run(
         .map_err(|e| SlamError::frontend("dead reckoning", e))?;
     timings.dead_reckoning_s = t.elapsed().as_secs_f64();
 
-    progress.stage("building scans and images");
+    progress.stage("assembling rotations");
     let t = Instant::now();
     let rotations = assemble_rotations(&mission.beams, &config.rotation)
         .map_err(|e| SlamError::frontend("rotation assembly", e))?;
-    let (nodes, skipped) = build_nodes(mission, &rotations, &navigation, config)?;
     timings.scan_image_building_s = t.elapsed().as_secs_f64();
-    if nodes.is_empty() {
-        return Err(SlamError::NoNodes {
-            mission: mission.name.clone(),
-            reason: skipped
-                .first()
-                .map_or_else(|| "no rotation".to_string(), |s| s.reason.clone()),
-        });
-    }
-    report_skipped(&skipped, &mut warnings);
-
-    progress.stage("sequential matching");
-    let t = Instant::now();
-    let sequential = sequential::match_all(&nodes, &navigation, config)?;
-    let mut matching_s = t.elapsed().as_secs_f64();
-
-    progress.start_nodes(nodes.len());
-    let t = Instant::now();
-    let mut estimate = Estimate::new(&config.backend)?;
-    let mut closer = LoopCloser::new(&config.loops, &config.matcher);
-    let mut incremental_error = None;
-    for k in 0..nodes.len() {
-        add_node(
-            k,
-            &nodes,
-            &sequential,
+    let mut pass = run_pass(
+        mission,
+        &rotations,
+        &navigation,
+        &navigation,
+        config,
+        progress,
+        &mut timings,
+    )?;
+    if config.motion_compensation.refine {
+        progress.stage("refining the motion compensation");
+        let t = Instant::now();
+        let stamps: Vec<f64> = pass.nodes.iter().map(|n| n.stamp_s).collect();
+        let dead_reckoning: Vec<Se2> = pass.nodes.iter().map(|n| n.dead_reckoning).collect();
+        let compensation = refined_navigation(
             &navigation,
+            &stamps,
+            &dead_reckoning,
+            &pass.graph.poses(),
+            config.dead_reckoning.max_extrapolation_s,
+        )
+        .map_err(|e| SlamError::frontend("refined motion compensation", e))?;
+        timings.scan_image_building_s += t.elapsed().as_secs_f64();
+        pass = run_pass(
+            mission,
+            &rotations,
+            &navigation,
+            &compensation,
             config,
-            &mut estimate,
-            &mut closer,
+            progress,
+            &mut timings,
         )?;
-        let mut optimise = |estimate: &mut Estimate| -> Result<(), SlamError> {
-            if config.backend.incremental {
-                // A failed incremental solve leaves the estimate as it was;
-                // the final batch solve decides.
-                if let Err(e) = estimate.optimise_incremental() {
-                    incremental_error.get_or_insert(e.to_string());
-                }
-            }
-            Ok(())
-        };
-        closer.close_loops(k, &nodes, &mut estimate, &mut optimise)?;
-        progress.node_done(k + 1, closer.accepted.ids.len());
     }
-    // Densified loops go straight into the final batch solve.
-    closer.densify(&nodes, &mut estimate)?;
-    closer.finish();
-    if let Some(e) = incremental_error {
-        warnings.push(format!(
-            "an incremental solve failed ({e}); the final batch solve was run anyway"
-        ));
-    }
-    if closer.inexact_cliques > 0 {
-        warnings.push(format!(
-            "{} consistency searches stopped at the work limit (the largest clique found by then was used)",
-            closer.inexact_cliques
-        ));
-    }
-    let loop_stage_s = t.elapsed().as_secs_f64();
-
-    progress.stage("optimisation");
-    let t = Instant::now();
-    let (graph, summary) = final_solve(config, &mut estimate, &mut closer)?;
-    timings.optimisation_s = t.elapsed().as_secs_f64() + estimate.incremental_time_s;
-    matching_s += loop_stage_s - estimate.incremental_time_s - closer.validation_time_s;
-    timings.matching_s = matching_s;
-    timings.loop_validation_s = closer.validation_time_s;
+    let Pass {
+        nodes,
+        skipped,
+        sequential,
+        estimate,
+        mut closer,
+        graph,
+        summary,
+        mut warnings,
+    } = pass;
 
     let mut records: Vec<NodeRecord> = nodes
         .iter()
@@ -231,6 +207,113 @@ fn run(
         scans,
         images,
         image_config: config.image.clone(),
+    })
+}
+
+/// What one pass of node building, matching and optimisation leaves.
+struct Pass<'a> {
+    nodes: Vec<NodeData>,
+    skipped: Vec<SkippedRotation>,
+    sequential: Vec<SequentialRecord>,
+    estimate: Estimate,
+    closer: LoopCloser<'a>,
+    graph: PoseGraph,
+    summary: echofield_backend::SolveSummary,
+    warnings: Vec<String>,
+}
+
+/// Builds the nodes with the beams placed by `compensation`, matches them
+/// (sequential and loops, with the incremental solves) and runs the final
+/// solve; adds its stage times to `timings`.
+fn run_pass<'a>(
+    mission: &Mission,
+    rotations: &[Rotation],
+    navigation: &Navigation,
+    compensation: &Navigation,
+    config: &'a SlamConfig,
+    progress: &dyn ProgressSink,
+    timings: &mut StageTimings,
+) -> Result<Pass<'a>, SlamError> {
+    let mut warnings = Vec::new();
+    progress.stage("building scans and images");
+    let t = Instant::now();
+    let (nodes, skipped) = build_nodes(mission, rotations, navigation, compensation, config)?;
+    timings.scan_image_building_s += t.elapsed().as_secs_f64();
+    if nodes.is_empty() {
+        return Err(SlamError::NoNodes {
+            mission: mission.name.clone(),
+            reason: skipped
+                .first()
+                .map_or_else(|| "no rotation".to_string(), |s| s.reason.clone()),
+        });
+    }
+    report_skipped(&skipped, &mut warnings);
+
+    progress.stage("sequential matching");
+    let t = Instant::now();
+    let sequential = sequential::match_all(&nodes, navigation, config)?;
+    let mut matching_s = t.elapsed().as_secs_f64();
+
+    progress.start_nodes(nodes.len());
+    let t = Instant::now();
+    let mut estimate = Estimate::new(&config.backend)?;
+    let mut closer = LoopCloser::new(&config.loops, &config.matcher);
+    let mut incremental_error = None;
+    for k in 0..nodes.len() {
+        add_node(
+            k,
+            &nodes,
+            &sequential,
+            navigation,
+            config,
+            &mut estimate,
+            &mut closer,
+        )?;
+        let mut optimise = |estimate: &mut Estimate| -> Result<(), SlamError> {
+            if config.backend.incremental {
+                // A failed incremental solve leaves the estimate as it was;
+                // the final batch solve decides.
+                if let Err(e) = estimate.optimise_incremental() {
+                    incremental_error.get_or_insert(e.to_string());
+                }
+            }
+            Ok(())
+        };
+        closer.close_loops(k, &nodes, &mut estimate, &mut optimise)?;
+        progress.node_done(k + 1, closer.accepted.ids.len());
+    }
+    // Densified loops go straight into the final batch solve.
+    closer.densify(&nodes, &mut estimate)?;
+    closer.finish();
+    if let Some(e) = incremental_error {
+        warnings.push(format!(
+            "an incremental solve failed ({e}); the final batch solve was run anyway"
+        ));
+    }
+    if closer.inexact_cliques > 0 {
+        warnings.push(format!(
+            "{} consistency searches stopped at the work limit (the largest clique found by then was used)",
+            closer.inexact_cliques
+        ));
+    }
+    let loop_stage_s = t.elapsed().as_secs_f64();
+
+    progress.stage("optimisation");
+    let t = Instant::now();
+    let (graph, summary) = final_solve(config, &mut estimate, &mut closer)?;
+    timings.optimisation_s += t.elapsed().as_secs_f64() + estimate.incremental_time_s;
+    matching_s += loop_stage_s - estimate.incremental_time_s - closer.validation_time_s;
+    timings.matching_s += matching_s;
+    timings.loop_validation_s += closer.validation_time_s;
+    Ok(Pass {
+        nodes,
+        skipped,
+        sequential,
+        estimate,
+        closer,
+        graph,
+        summary,
+        warnings,
     })
 }
 
