@@ -144,11 +144,12 @@ pub struct MotionCompensationConfig {
     /// image with the dead reckoning bent through the first pass's
     /// optimised node poses ([`super::refine`]), then matches and
     /// optimises again. Odometry edges and priors still come from the dead
-    /// reckoning. About doubles the run time. Default false: it pays where
-    /// the dead reckoning is poor (the real St Pere navigation errs by
-    /// 0.5 m per rotation, median, and by up to 1.6 m in sharp turns), not
-    /// on the simulated marina, whose dead reckoning errs by centimetres
-    /// per rotation. Seeds 1-3, one thread:
+    /// reckoning. The outputs and the report's counts are the second
+    /// pass's; its stage timings add up both. About doubles the run time.
+    /// Default false: it pays where the dead reckoning is poor (the real
+    /// St Pere navigation errs by 0.5 m per rotation, median, and by up to
+    /// 1.6 m in sharp turns), not on the simulated marina (0.23 m per
+    /// rotation). Seeds 1-3, one thread:
     ///
     /// | | ATE (m) | precision | time (St Pere) |
     /// |---|---|---|---|
