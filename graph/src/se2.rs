@@ -125,7 +125,9 @@ impl Se2 {
 
     /// Applies the pose to a point given as `(x, y)`.
     pub fn transform_xy(&self, x: f64, y: f64) -> (f64, f64) {
-        let (s, c) = self.iso.rotation.angle().sin_cos();
+        // The unit complex number holds (cos θ, sin θ): no atan2 and
+        // sin_cos per point (1.5% of a St Pere run's instructions).
+        let (c, s) = (self.iso.rotation.cos_angle(), self.iso.rotation.sin_angle());
         let t = &self.iso.translation.vector;
         (c * x - s * y + t.x, s * x + c * y + t.y)
     }
