@@ -3,12 +3,19 @@
 //! the DGPS track.
 
 use echofield::slam::{NoProgress, SlamConfig, run_mission};
-use echofield_datasets::sim::{Scenario, simulate_mission};
+use echofield_datasets::sim::{Mission, Scenario, simulate_mission};
+use std::sync::OnceLock;
+
+/// The St Pere replay with seed 1, simulated once for all the tests here.
+fn st_pere_mission() -> &'static Mission {
+    static MISSION: OnceLock<Mission> = OnceLock::new();
+    MISSION.get_or_init(|| simulate_mission(&Scenario::named("stpere").unwrap(), 1).unwrap())
+}
 
 #[test]
 fn st_pere_replay_is_within_a_metre_of_dgps() {
-    let mission = simulate_mission(&Scenario::named("stpere").unwrap(), 1).unwrap();
-    let output = run_mission(&mission, &SlamConfig::default(), &NoProgress).unwrap();
+    let mission = st_pere_mission();
+    let output = run_mission(mission, &SlamConfig::default(), &NoProgress).unwrap();
     let report = &output.report;
     // The beams of the first ~183 s precede the navigation: those
     // rotations are skipped and reported, the rest are nodes.
@@ -60,10 +67,10 @@ fn st_pere_replay_is_within_a_metre_of_dgps() {
 /// 0.991, but ATE 0.200 -> 0.250 m.
 #[test]
 fn densification_closes_loops_between_the_overlapping_rotations() {
-    let mission = simulate_mission(&Scenario::named("stpere").unwrap(), 1).unwrap();
+    let mission = st_pere_mission();
     let mut config = SlamConfig::default();
     config.loops.densify = true;
-    let output = run_mission(&mission, &config, &NoProgress).unwrap();
+    let output = run_mission(mission, &config, &NoProgress).unwrap();
     let report = &output.report;
     let ate = report.ate.as_ref().unwrap();
     assert!(ate.rmse_m <= 0.35, "ATE {:.3} m against DGPS", ate.rmse_m);
@@ -105,10 +112,10 @@ fn densification_closes_loops_between_the_overlapping_rotations() {
 /// compensation), precision 0.985 -> 0.981, twice the time.
 #[test]
 fn refined_motion_compensation_brings_the_trajectory_closer_to_dgps() {
-    let mission = simulate_mission(&Scenario::named("stpere").unwrap(), 1).unwrap();
+    let mission = st_pere_mission();
     let mut config = SlamConfig::default();
     config.motion_compensation.refine = true;
-    let output = run_mission(&mission, &config, &NoProgress).unwrap();
+    let output = run_mission(mission, &config, &NoProgress).unwrap();
     let report = &output.report;
     let ate = report.ate.as_ref().unwrap();
     // The default configuration gives 0.200 m (test above).

@@ -253,12 +253,6 @@ impl Navigation {
         self.heading_bias = bias;
     }
 
-    /// The heading error outside the filter that [`Navigation::relative`]
-    /// accounts for.
-    pub fn heading_bias(&self) -> HeadingBias {
-        self.heading_bias
-    }
-
     /// `world_from_vehicle` at `stamp_s` (see the type doc for interpolation
     /// and extrapolation).
     pub fn pose_at(&self, stamp_s: f64) -> Result<Se2, FrontendError> {
