@@ -371,21 +371,40 @@ impl Painter {
                 let mut x = to_fixed(job.gx + lo as f64 * job.sx);
                 let mut y = to_fixed(job.gy + lo as f64 * job.sy);
                 let (sx, sy) = (to_fixed(job.sx), to_fixed(job.sy));
+                let value = |t: usize| {
+                    if job.sub == 1 {
+                        values[t]
+                    } else {
+                        values[t / job.sub]
+                    }
+                };
+                // A run whose first and last samples are in the grid lies
+                // in it (the grid is convex): no test per sample. That is
+                // nearly every run, as the grid covers the lines.
+                let steps = (hi - lo - 1) as i64;
+                if run_inside(x, sx, steps, w) && run_inside(y, sy, steps, h) {
+                    let mut put = |v: f32| {
+                        let idx = (y >> 32) as usize * self.width + (x >> 32) as usize;
+                        acc.put(idx, x as u32, y as u32, v);
+                        x += sx;
+                        y += sy;
+                    };
+                    if job.sub == 1 {
+                        values[lo..hi].iter().for_each(|&v| put(v));
+                    } else {
+                        (lo..hi).for_each(|t| put(values[t / job.sub]));
+                    }
+                    continue;
+                }
                 for t in lo..hi {
                     // Negative positions become huge and fail the test.
                     let (ix, iy) = ((x >> 32) as u64, (y >> 32) as u64);
                     if ix < w && iy < h {
                         let idx = iy as usize * self.width + ix as usize;
-                        let (fx, fy) = (x as u32, y as u32);
-                        let v = if job.sub == 1 {
-                            values[t]
-                        } else {
-                            values[t / job.sub]
-                        };
-                        acc.put(idx, fx, fy, v);
+                        acc.put(idx, x as u32, y as u32, value(t));
                     }
-                    x += sx;
-                    y += sy;
+                    x = x.wrapping_add(sx);
+                    y = y.wrapping_add(sy);
                 }
             }
             band += BAND_SAMPLES;
@@ -461,6 +480,15 @@ const HALF_CELL: i64 = 1 << 30;
 #[inline]
 fn to_fixed(cells: f64) -> i64 {
     (cells * FIXED_ONE) as i64
+}
+
+/// The fixed-point coordinates `p0` and `p0 + steps·step` both lie in
+/// cells `0..cells` (`0 ≤ p < cells·2³²`).
+#[inline]
+fn run_inside(p0: i64, step: i64, steps: i64, cells: u64) -> bool {
+    let max = (i128::from(cells) << 32) - 1;
+    let last = i128::from(p0) + i128::from(steps) * i128::from(step);
+    (0..=max).contains(&i128::from(p0)) && (0..=max).contains(&last)
 }
 
 /// Where the values of a line come from.
@@ -693,6 +721,35 @@ mod tests {
         let b = 20.0_f64.to_radians();
         let (ix, iy) = grid.cell_of(4.0 * b.cos(), 1.0 + 4.0 * b.sin());
         assert!(grid.cell(ix, iy) > 0.9);
+    }
+
+    /// `run_inside` holds exactly when every sample of the run passes the
+    /// per-sample cell test, also for runs that start outside the grid,
+    /// leave it, never enter it or stand still.
+    #[test]
+    fn a_run_is_inside_when_every_sample_is() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let one = FIXED_ONE as i64;
+        let (mut inside, mut outside) = (0, 0);
+        for case in 0..20_000 {
+            let cells = rng.random_range(1..40_u64);
+            let p0 = rng.random_range(-10 * one..50 * one);
+            let step = match case % 3 {
+                0 => 0,
+                1 => rng.random_range(-one / 4..=one / 4),
+                _ => rng.random_range(-one..=one),
+            };
+            let steps = rng.random_range(0..100_i64);
+            let every = (0..=steps).all(|k| (((p0 + k * step) >> 32) as u64) < cells);
+            assert_eq!(
+                run_inside(p0, step, steps, cells),
+                every,
+                "p0 {p0}, step {step}, steps {steps}, cells {cells}"
+            );
+            if every { inside += 1 } else { outside += 1 }
+        }
+        assert!(inside > 1000 && outside > 1000, "{inside} / {outside}");
     }
 
     #[test]

@@ -7,6 +7,16 @@
 //! match and the inverse of the reverse one is a better measurement than
 //! either (on the simulated marina the error of loop measurements drops
 //! from 0.29 m to 0.22 m RMS).
+//!
+//! Loop closures run the reverse match as a climb to the nearest maximum
+//! ([`match_scan_local`]), sequential matches as a search of the window
+//! ([`match_scan`]). Over ten simulated missions (marina seeds 1-6, St Pere
+//! 1-3, canyon) the climb accepts the same loops to within a few (St Pere
+//! seed 1: 473 against 472, 465 true positives either way), moves the ATE
+//! by at most 0.017 m in either direction, and costs a third of the
+//! search: 4.8% fewer instructions over a St Pere run. For the sequential
+//! matches, which the reverse check guards against distorted scans, the
+//! climb cost accuracy (marina seed 2: ATE 0.309 -> 0.348 m).
 
 use super::result::ReverseCheck;
 use echofield_frontend::FrontendError;

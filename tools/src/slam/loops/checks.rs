@@ -13,8 +13,9 @@
 //!    window (where the true peak may lie outside it); a match at the
 //!    border is searched once more over twice the window (at most
 //!    `max_window`) before this check is final;
-//! 5. `reverse_mismatch`: the symmetric match `S_j` vs `I_k` around the
-//!    inverse of the forward result must agree with it.
+//! 5. `reverse_mismatch`: the symmetric match `S_j` vs `I_k`, a climb to
+//!    the nearest maximum from the inverse of the forward result, must
+//!    agree with it.
 
 use super::LoopConfig;
 use crate::slam::SlamError;
@@ -166,7 +167,8 @@ pub fn examine(
     if record.rejected_by.is_some() {
         return Ok(record);
     }
-    // The symmetric check: S_j on I_k around the inverse of the result.
+    // The symmetric check: S_j on I_k, climbing from the inverse of the
+    // result (see `symmetric` for why a climb and not a search).
     let tolerance = Tolerance {
         window: config.reverse_window.search(),
         max_translation_m: config.reverse_max_translation_m,
@@ -178,7 +180,7 @@ pub fn examine(
         &new.image,
         &tolerance,
         matcher,
-        candidate.densify,
+        true,
     )
     .map_err(|e| SlamError::frontend(format!("reverse {}", stage()), e))?;
     record.reverse = Some(reverse);
