@@ -75,8 +75,9 @@ pub struct LoopConfig {
     /// from its edge is rejected (`window_edge`): the true peak may lie
     /// outside the searched window. Default 0.05.
     pub window_edge_fraction: f64,
-    /// Symmetric check: `S_j` is matched against `I_k` around the inverse
-    /// of the forward match, within this window `[x_m, y_m, theta_rad]`.
+    /// Symmetric check: `S_j` is matched against `I_k` by a climb from the
+    /// inverse of the forward match to the nearest maximum, within this
+    /// window `[x_m, y_m, theta_rad]`.
     /// Default 0.5 m, 0.5 m, 3°.
     pub reverse_window: Window,
     /// The forward match and the inverse of the reverse match must agree
