@@ -189,21 +189,28 @@ fn match_with(
             f64::from(disc.angle_steps) * angle_step_rad,
         ),
     };
-    let refined = refine::refine(
-        &points,
-        image,
-        &coarse,
-        &bounds,
-        rho_m,
-        0.5 * cell_m,
-        config.refine_iterations,
-    );
+    // Without simplex iterations the refinement would return the lattice
+    // pose after scoring it once for nothing.
+    let (refined_pose, refine_iterations) = if config.refine_iterations == 0 {
+        (coarse, 0)
+    } else {
+        let r = refine::refine(
+            &points,
+            image,
+            &coarse,
+            &bounds,
+            rho_m,
+            0.5 * cell_m,
+            config.refine_iterations,
+        );
+        (r.pose, r.iterations)
+    };
     let steps = Vector3::new(cell_m, cell_m, cell_m / rho_m);
     let bound = window.as_vector().sup(&steps);
     let fit = covariance::fit_surface(
         &points,
         image,
-        &refined.pose,
+        &refined_pose,
         steps.z,
         2,
         &bound,
@@ -212,10 +219,10 @@ fn match_with(
     // Without the simplex, the peak of the fitted quadratic gives the
     // sub-cell pose (the lattice pose is quantised to the cells).
     let pose = if config.refine_iterations == 0 {
-        let v = refined.pose.to_vector() + fit.peak_offset;
+        let v = refined_pose.to_vector() + fit.peak_offset;
         Se2::new(v.x, v.y, v.z)
     } else {
-        refined.pose
+        refined_pose
     };
     let mean = mean_score(&points, image, &pose);
     let inside = points
@@ -240,7 +247,7 @@ fn match_with(
         stats: MatchStats {
             angle_step_rad,
             search_nodes: stats.nodes,
-            refine_iterations: refined.iterations,
+            refine_iterations,
         },
     })))
 }
