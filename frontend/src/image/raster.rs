@@ -392,7 +392,7 @@ impl Painter {
                     if job.sub == 1 {
                         values[lo..hi].iter().for_each(|&v| put(v));
                     } else {
-                        (lo..hi).for_each(|t| put(values[t / job.sub]));
+                        (lo..hi).for_each(|t| put(value(t)));
                     }
                     continue;
                 }
