@@ -63,8 +63,10 @@ fn st_pere_replay_is_within_a_metre_of_dgps() {
 
 /// `loops.densify`: after the mission every overlapping pair whose
 /// relative pose the estimate knows is matched by a local climb. Measured
-/// on seed 1: recall over node pairs 0.20 -> 0.86, precision 0.985 ->
-/// 0.991, but ATE 0.200 -> 0.250 m.
+/// on seed 1: recall over node pairs 0.20 -> 0.86, precision 0.983 ->
+/// 0.990, ATE 0.200 -> 0.203 m. The densified loops share their nodes'
+/// errors with the loops already there; taken as independent
+/// (`densify_correlation = 0`) they pulled the ATE to 0.246 m.
 #[test]
 fn densification_closes_loops_between_the_overlapping_rotations() {
     let mission = st_pere_mission();
@@ -73,7 +75,7 @@ fn densification_closes_loops_between_the_overlapping_rotations() {
     let output = run_mission(mission, &config, &NoProgress).unwrap();
     let report = &output.report;
     let ate = report.ate.as_ref().unwrap();
-    assert!(ate.rmse_m <= 0.35, "ATE {:.3} m against DGPS", ate.rmse_m);
+    assert!(ate.rmse_m <= 0.22, "ATE {:.3} m against DGPS", ate.rmse_m);
     let dense: Vec<_> = output.loops.iter().filter(|l| l.densified).collect();
     assert_eq!(dense.len(), report.loop_densified_candidates);
     assert!(

@@ -110,28 +110,35 @@ pub struct LoopConfig {
     /// loops between all the rotations of a revisited place, not only the
     /// `max_candidates_per_node` best. A pair costs about 0.3 ms (a local
     /// climb instead of a search of the window). Default false: it buys
-    /// recall at the cost of accuracy on every simulated mission. Seeds
-    /// 1-3:
+    /// recall over node pairs for time, and on the marina for precision.
+    /// Seeds 1-3 (marina 1-6), ATE with `densify_correlation` 0 and 1:
     ///
-    /// | | recall (pairs) | precision | ATE (m) | time |
-    /// |---|---|---|---|---|
-    /// | St Pere, off | 0.198-0.199 | 0.975-0.985 | 0.191-0.230 | |
-    /// | St Pere, on | 0.861-0.875 | 0.986-0.991 | 0.207-0.250 | about +1 s |
-    /// | marina, off | 0.33-0.34 | 0.993-0.997 | 0.32-0.48 | |
-    /// | marina, on | 0.58-0.62 | 0.970-0.979 | 0.56-0.66 | up to +0.3 s |
+    /// | | recall (pairs) | precision | ATE (m), ρ = 0 | ATE (m), ρ = 1 | time |
+    /// |---|---|---|---|---|---|
+    /// | St Pere, off | 0.198-0.199 | 0.975-0.983 | 0.196-0.229 | | |
+    /// | St Pere, on | 0.862-0.876 | 0.986-0.990 | 0.207-0.248 | 0.194-0.230 | about +1 s |
+    /// | marina, off | 0.32-0.34 | 0.990-0.997 | 0.31-0.93, mean 0.479 | | |
+    /// | marina, on | 0.58-0.61 | 0.972-0.985 | 0.43-0.81, mean 0.619 | 0.32-0.89, mean 0.478 | up to +0.3 s |
+    /// | canyon s1, off | 0.385 | 1.0 | 0.147 | | |
+    /// | canyon s1, on | 0.946 | 0.997 | 0.211 | 0.152 | about +0.4 s |
     ///
     /// On the marina the extra loops repeat the same geometry-biased
-    /// matches many times over and pull the trajectory with them. The
-    /// simulated canyon (seed 1) shows the same: recall 0.39 -> 0.95,
-    /// precision 1.0 -> 0.997, ATE 0.153 -> 0.210 m. (Before the heading
-    /// units' wander was in the odometry covariance, densification did
-    /// improve St Pere: 0.181-0.233 m against 0.211-0.237 m.)
+    /// matches many times over: taken as independent they pull the
+    /// trajectory with them; with the design effect of
+    /// `densify_correlation` they leave it where it was.
     pub densify: bool,
     /// Densification considers a pair only when its search window
     /// (`n_sigma` standard deviations of the relative uncertainty) is
     /// within these half-widths `[x_m, y_m, theta_rad]`; it then climbs
     /// within `min_window` of the estimate. Default 2 m, 2 m, 6°.
     pub densify_max_window: Window,
+    /// Correlation `ρ` (0-1) assumed between the errors of loops that share
+    /// a node, applied to densified loops: a densified loop `(j, k)` enters
+    /// the graph with its covariance multiplied by the design effect
+    /// `1 + ρ·(m_j + m_k − 2)`, `m_x` the accepted loops at node `x`
+    /// (module doc of [`crate::slam::loops`]). Default 1.0: the densified
+    /// loops at a node count together about as much as one loop.
+    pub densify_correlation: f64,
 }
 
 impl Default for LoopConfig {
@@ -159,6 +166,7 @@ impl Default for LoopConfig {
             drift_heading_sigma_rad: 2.0_f64.to_radians(),
             densify: false,
             densify_max_window: Window::new(2.0, 2.0, 6.0_f64.to_radians()),
+            densify_correlation: 1.0,
         }
     }
 }
@@ -233,6 +241,12 @@ impl LoopConfig {
         )?;
         check_range("loops.drift_fraction", self.drift_fraction, 0.0, 10.0)?;
         check_window("loops.densify_max_window", &self.densify_max_window)?;
+        check_range(
+            "loops.densify_correlation",
+            self.densify_correlation,
+            0.0,
+            1.0,
+        )?;
         check_range(
             "loops.drift_heading_sigma_rad",
             self.drift_heading_sigma_rad,
