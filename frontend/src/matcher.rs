@@ -191,10 +191,8 @@ fn match_with(
     };
     // Without simplex iterations the refinement would return the lattice
     // pose after scoring it once for nothing.
-    let (refined_pose, refine_iterations) = if config.refine_iterations == 0 {
-        (coarse, 0)
-    } else {
-        let r = refine::refine(
+    let refined = (config.refine_iterations > 0).then(|| {
+        refine::refine(
             &points,
             image,
             &coarse,
@@ -202,15 +200,14 @@ fn match_with(
             rho_m,
             0.5 * cell_m,
             config.refine_iterations,
-        );
-        (r.pose, r.iterations)
-    };
+        )
+    });
     let steps = Vector3::new(cell_m, cell_m, cell_m / rho_m);
     let bound = window.as_vector().sup(&steps);
     let fit = covariance::fit_surface(
         &points,
         image,
-        &refined_pose,
+        refined.as_ref().map_or(&coarse, |r| &r.pose),
         steps.z,
         2,
         &bound,
@@ -218,11 +215,12 @@ fn match_with(
     );
     // Without the simplex, the peak of the fitted quadratic gives the
     // sub-cell pose (the lattice pose is quantised to the cells).
-    let pose = if config.refine_iterations == 0 {
-        let v = refined_pose.to_vector() + fit.peak_offset;
-        Se2::new(v.x, v.y, v.z)
-    } else {
-        refined_pose
+    let pose = match &refined {
+        Some(r) => r.pose,
+        None => {
+            let v = coarse.to_vector() + fit.peak_offset;
+            Se2::new(v.x, v.y, v.z)
+        }
     };
     let mean = mean_score(&points, image, &pose);
     let inside = points
@@ -247,7 +245,7 @@ fn match_with(
         stats: MatchStats {
             angle_step_rad,
             search_nodes: stats.nodes,
-            refine_iterations,
+            refine_iterations: refined.map_or(0, |r| r.iterations),
         },
     })))
 }
