@@ -175,44 +175,61 @@ impl Grid {
     /// `(2r + 2)²` patch of cells: far cheaper than `(2r + 1)²` separate
     /// lookups. `r` is at most [`MAX_SHIFT_RADIUS`].
     pub fn add_bilinear_shifts(&self, x_m: f64, y_m: f64, r: usize, sums: &mut [f64]) {
-        assert!(
-            r <= MAX_SHIFT_RADIUS,
-            "shift radius {r} > {MAX_SHIFT_RADIUS}"
-        );
-        let n = 2 * r + 1;
-        assert_eq!(sums.len(), n * n, "one sum per shift");
+        assert_eq!(sums.len(), (2 * r + 1).pow(2), "one sum per shift");
+        // A constant radius lets the compiler unroll the short loops.
+        match r {
+            0 => self.add_shifts::<0>(x_m, y_m, sums),
+            1 => self.add_shifts::<1>(x_m, y_m, sums),
+            2 => self.add_shifts::<2>(x_m, y_m, sums),
+            3 => self.add_shifts::<3>(x_m, y_m, sums),
+            _ => panic!("shift radius {r} > {MAX_SHIFT_RADIUS}"),
+        }
+    }
+
+    fn add_shifts<const R: usize>(&self, x_m: f64, y_m: f64, sums: &mut [f64]) {
+        let n = 2 * R + 1;
+        let side = n + 1;
         let (gx, gy) = self.lattice(x_m, y_m);
         if !(gx.is_finite() && gy.is_finite()) {
             return;
         }
         let (fx0, fy0) = (floor(gx), floor(gy));
         let (fx, fy) = (gx - fx0, gy - fy0);
-        let (ix, iy) = (fx0 as i64 - r as i64, fy0 as i64 - r as i64);
-        let side = n + 1;
+        let (ix, iy) = (fx0 as i64 - R as i64, fy0 as i64 - R as i64);
         let (w, h) = (self.width as i64, self.height as i64);
         if ix >= w || iy >= h || ix + side as i64 <= 0 || iy + side as i64 <= 0 {
             return;
         }
-        let mut patch = [0.0_f64; (MAX_SHIFT_RADIUS * 2 + 2) * (MAX_SHIFT_RADIUS * 2 + 2)];
+        // Interpolate along x first: `rows[dy][a]` is the value at the
+        // fractional x of shift `a` on cell row `iy + dy`. Each of these
+        // serves two shifts in y: 2n + 1 lerps per column of shifts
+        // instead of 3n, each the same operation as in a lookup of one
+        // shift, so the sums do not change.
         let interior = ix >= 0 && iy >= 0 && ix + side as i64 <= w && iy + side as i64 <= h;
+        let mut rows = [0.0_f64; (MAX_SHIFT_RADIUS * 2 + 2) * (MAX_SHIFT_RADIUS * 2 + 1)];
+        let mut row = [0.0_f64; MAX_SHIFT_RADIUS * 2 + 2];
         for dy in 0..side {
-            for dx in 0..side {
-                patch[dy * side + dx] = f64::from(if interior {
-                    self.values[(iy as usize + dy) * self.width + ix as usize + dx]
-                } else {
-                    self.cell(ix + dx as i64, iy + dy as i64)
-                });
+            if interior {
+                let start = (iy as usize + dy) * self.width + ix as usize;
+                for (v, &c) in row[..side]
+                    .iter_mut()
+                    .zip(&self.values[start..start + side])
+                {
+                    *v = f64::from(c);
+                }
+            } else {
+                for (dx, v) in row[..side].iter_mut().enumerate() {
+                    *v = f64::from(self.cell(ix + dx as i64, iy + dy as i64));
+                }
+            }
+            for a in 0..n {
+                let (v0, v1) = (row[a], row[a + 1]);
+                rows[dy * n + a] = v0 + fx * (v1 - v0);
             }
         }
-        for b in 0..n {
-            for a in 0..n {
-                let k = b * side + a;
-                let (v00, v10, v01, v11) =
-                    (patch[k], patch[k + 1], patch[k + side], patch[k + side + 1]);
-                let bottom = v00 + fx * (v10 - v00);
-                let top = v01 + fx * (v11 - v01);
-                sums[b * n + a] += bottom + fy * (top - bottom);
-            }
+        for (k, sum) in sums[..n * n].iter_mut().enumerate() {
+            let (bottom, top) = (rows[k], rows[k + n]);
+            *sum += bottom + fy * (top - bottom);
         }
     }
 
