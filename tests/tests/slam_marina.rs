@@ -102,11 +102,12 @@ fn marina_mission_is_five_times_better_than_dead_reckoning() {
     assert!((report.ate_rmse_m.unwrap() - slam).abs() < 1e-6);
 
     // Loops: many, nearly all within the true-positive tolerances (0.5 m,
-    // 3 deg), none grossly wrong. Measured on seed 1: ATE 0.481 m (dead
-    // reckoning 2.816 m, 5.9x), precision 0.997 (one loop 0.51 m off),
-    // recall 0.342 of the overlapping node pairs and 0.935 of the revisits;
-    // the recall target (0.9 of the pairs) is not met: each node
-    // is matched against at most 4 older ones.
+    // 3 deg), none grossly wrong. Measured on seed 1: ATE 0.493 m (dead
+    // reckoning 2.816 m, 5.7x), precision 0.998 (one loop 0.53 m off),
+    // recall 0.512 of the overlapping node pairs and 0.935 of the revisits;
+    // the recall target (0.9 of the pairs) is not met: many of the
+    // pairs missed see one quay wall, whose matches are right but fail the
+    // covariance gate.
     assert!(
         report.loops_accepted >= 150,
         "{} loops",
@@ -137,7 +138,7 @@ fn marina_mission_is_five_times_better_than_dead_reckoning() {
     let revisits = report.loop_recall_revisits.unwrap();
     assert!(revisits >= 0.88, "revisit recall {revisits:.3}");
     let recall = report.loop_recall.unwrap();
-    assert!(recall >= 0.28 && recall < revisits, "recall {recall:.3}");
+    assert!(recall >= 0.45 && recall < revisits, "recall {recall:.3}");
     let counts = report.loop_evaluation.as_ref().unwrap();
     assert!(
         counts.recall_pairs > 800,

@@ -26,6 +26,7 @@ use echofield_frontend::image::ImageConfig;
 use echofield_frontend::matcher::{MatcherConfig, SearchWindow};
 use echofield_frontend::rotation::RotationConfig;
 use echofield_frontend::segmentation::SegmentationConfig;
+use nalgebra::Matrix3;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -197,6 +198,14 @@ impl Window {
             y_m,
             theta_rad,
         }
+    }
+
+    /// The standard deviations of `covariance` (x m, y m, θ rad) are
+    /// within these values on every axis.
+    pub fn bounds_sigma(&self, covariance: &Matrix3<f64>) -> bool {
+        covariance[(0, 0)].sqrt() <= self.x_m
+            && covariance[(1, 1)].sqrt() <= self.y_m
+            && covariance[(2, 2)].sqrt() <= self.theta_rad
     }
 
     /// As the matcher's window type.

@@ -27,10 +27,12 @@
 //!   [`super::config::EvaluationConfig`]), whether or not the pipeline
 //!   picked them as candidates.
 //! - **Recall** (`loop_recall`) = recall pairs joined by an accepted
-//!   true-positive loop / recall pairs. The pipeline matches each node
-//!   against at most `loops.max_candidates_per_node` older ones, while a
-//!   return to a known place overlaps many older nodes, so this pair-level
-//!   figure stays well below 1 by design.
+//!   true-positive loop / recall pairs. While the mission runs the
+//!   pipeline matches each node against at most
+//!   `loops.max_candidates_per_node` older ones, while a return to a known
+//!   place overlaps many older nodes; the pairs left are matched after the
+//!   mission only with `loops.densify`, without which this pair-level
+//!   figure stays well below 1.
 //! - A **revisit** is a node `k` that is the newer node of at least one
 //!   recall pair: the vehicle is back where it has been. **Revisit
 //!   recall** (`loop_recall_revisits`) = revisits that are the newer node

@@ -26,10 +26,11 @@
 //!    it). Accepted loops become `Loop` edges with the match covariance
 //!    plus the `min_sigma` floor; the backend's robust kernel on loop edges
 //!    is the last line of defence.
-//! 5. **Densification** (optional, `densify`, after the mission): the pairs
-//!    never examined whose relative pose the estimate already knows are
-//!    matched by a local climb from the estimate and accepted when they
-//!    agree with it ([`LoopCloser::densify`]). Loops that share a node
+//! 5. **Densification** (`densify`, on by default, after the mission):
+//!    the pairs never examined whose relative pose the estimate already
+//!    knows are matched by a local climb from the estimate, gated by the
+//!    tighter `densify_max_sigma`, and accepted when they agree with the
+//!    estimate ([`LoopCloser::densify`]). Loops that share a node
 //!    share its errors: a scan built with a wrong motion within its
 //!    rotation, or seen along a wall, misplaces every loop it takes part
 //!    in the same way (on the simulated missions and the St Pere replay

@@ -8,7 +8,7 @@
 //! 2. `quality`: mean intensity under the points, fraction of points inside
 //!    the image, and the second-peak ratio (a distinct maximum);
 //! 3. `covariance`: positive definite, standard deviations within
-//!    `max_sigma`;
+//!    `max_sigma` (`densify_max_sigma` for a densification pair);
 //! 4. `window_edge`: the maximum is not at the border of the searched
 //!    window (where the true peak may lie outside it); a match at the
 //!    border is searched once more over twice the window (at most
@@ -207,11 +207,12 @@ fn individual_checks(
         return Some(RejectReason::Quality);
     }
     let cov = symmetric(m.covariance);
-    let max = &config.max_sigma;
-    let sigma_ok = cov[(0, 0)].sqrt() <= max.x_m
-        && cov[(1, 1)].sqrt() <= max.y_m
-        && cov[(2, 2)].sqrt() <= max.theta_rad;
-    if cov.cholesky().is_none() || !sigma_ok {
+    let max_sigma = if candidate.densify {
+        &config.densify_max_sigma
+    } else {
+        &config.max_sigma
+    };
+    if cov.cholesky().is_none() || !max_sigma.bounds_sigma(&cov) {
         return Some(RejectReason::Covariance);
     }
     let d = m.image_from_scan.to_vector() - candidate.prior.to_vector();
@@ -239,6 +240,56 @@ mod tests {
             wide: false,
             densify: false,
         }
+    }
+
+    /// A match at `prior` with standard deviations `sigma_xy` (m) and 1°,
+    /// good quality otherwise.
+    fn match_with_sigma(sigma_xy: f64) -> MatchResult {
+        MatchResult {
+            image_from_scan: Se2::identity(),
+            score: 50.0,
+            quality: echofield_frontend::matcher::MatchQuality {
+                mean_intensity: 0.6,
+                inside_fraction: 1.0,
+                second_peak_ratio: None,
+                points: 100,
+                surface_fit_residual: 0.05,
+            },
+            covariance: Matrix3::from_diagonal(&nalgebra::Vector3::new(
+                sigma_xy * sigma_xy,
+                sigma_xy * sigma_xy,
+                1.0_f64.to_radians().powi(2),
+            )),
+            coarse: Se2::identity(),
+            stats: echofield_frontend::matcher::MatchStats {
+                angle_step_rad: 0.01,
+                search_nodes: 1,
+                refine_iterations: 0,
+            },
+        }
+    }
+
+    #[test]
+    fn densification_pairs_are_held_to_their_own_sigma_limit() {
+        let config = LoopConfig::default();
+        let window = SearchWindow::new(1.0, 1.0, 0.1);
+        let sigma = 0.5 * (config.max_sigma.x_m + config.densify_max_sigma.x_m);
+        assert!(config.densify_max_sigma.x_m < sigma && sigma < config.max_sigma.x_m);
+        let mut c = candidate(SearchWindow::new(0.3, 0.3, 0.02));
+        assert_eq!(
+            individual_checks(&match_with_sigma(sigma), &c, &window, &config),
+            None
+        );
+        c.densify = true;
+        assert_eq!(
+            individual_checks(&match_with_sigma(sigma), &c, &window, &config),
+            Some(RejectReason::Covariance)
+        );
+        let tight = 0.9 * config.densify_max_sigma.x_m;
+        assert_eq!(
+            individual_checks(&match_with_sigma(tight), &c, &window, &config),
+            None
+        );
     }
 
     #[test]

@@ -109,23 +109,25 @@ pub struct LoopConfig {
     /// (loop densification, [`LoopCloser::densify`](crate::slam::loops::LoopCloser::densify)):
     /// loops between all the rotations of a revisited place, not only the
     /// `max_candidates_per_node` best. A pair costs about 0.3 ms (a local
-    /// climb instead of a search of the window). Default false: it buys
-    /// recall over node pairs for time, and on the marina for precision.
-    /// Seeds 1-3 (marina 1-6), ATE with `densify_correlation` 0 and 1:
+    /// climb instead of a search of the window). Default true: it buys
+    /// recall over node pairs for time, at the same ATE. Seeds 1-3
+    /// (marina 1-6), `densify_correlation` 1:
     ///
-    /// | | recall (pairs) | precision | ATE (m), ρ = 0 | ATE (m), ρ = 1 | time |
-    /// |---|---|---|---|---|---|
-    /// | St Pere, off | 0.198-0.199 | 0.975-0.983 | 0.196-0.229 | | |
-    /// | St Pere, on | 0.862-0.876 | 0.986-0.990 | 0.207-0.248 | 0.194-0.230 | about +1 s |
-    /// | marina, off | 0.32-0.34 | 0.990-0.997 | 0.31-0.93, mean 0.479 | | |
-    /// | marina, on | 0.58-0.61 | 0.972-0.985 | 0.43-0.81, mean 0.619 | 0.32-0.89, mean 0.478 | up to +0.3 s |
-    /// | canyon s1, off | 0.385 | 1.0 | 0.147 | | |
-    /// | canyon s1, on | 0.946 | 0.997 | 0.211 | 0.152 | about +0.4 s |
+    /// | | recall (pairs) | precision | ATE (m) | time |
+    /// |---|---|---|---|---|
+    /// | St Pere, off | 0.198-0.199 | 0.975-0.983 | 0.196-0.229 | |
+    /// | St Pere, on | 0.836-0.842 | 0.986-0.991 | 0.195-0.229 | +16 % of the instructions |
+    /// | marina, off | 0.32-0.34 | 0.990-0.997 | 0.31-0.93, mean 0.479 | |
+    /// | marina, on | 0.48-0.51 | 0.987-0.998 | 0.32-0.91, mean 0.474 | up to +0.3 s |
+    /// | canyon s1, off | 0.385 | 1.0 | 0.147 | |
+    /// | canyon s1, on | 0.946 | 0.997 | 0.152 | about +0.4 s |
     ///
-    /// On the marina the extra loops repeat the same geometry-biased
-    /// matches many times over: taken as independent they pull the
-    /// trajectory with them; with the design effect of
-    /// `densify_correlation` they leave it where it was.
+    /// Without the design effect of `densify_correlation` (ρ = 0) the
+    /// extra loops, which repeat the same geometry-biased matches many
+    /// times over, pulled the trajectories with them: St Pere 0.207-0.248
+    /// m, marina mean 0.619 m, canyon 0.211 m. Without
+    /// `densify_max_sigma` (0.5 m as `max_sigma`) the marina's precision
+    /// was 0.972-0.985 (recall 0.58-0.61).
     pub densify: bool,
     /// Densification considers a pair only when its search window
     /// (`n_sigma` standard deviations of the relative uncertainty) is
@@ -139,6 +141,16 @@ pub struct LoopConfig {
     /// (module doc of [`crate::slam::loops`]). Default 1.0: the densified
     /// loops at a node count together about as much as one loop.
     pub densify_correlation: f64,
+    /// `max_sigma` for the densification pairs: densified matches whose
+    /// standard deviation exceeds `[x_m, y_m, theta_rad]` on any axis are
+    /// rejected (`covariance`). Default 0.35 m, 0.35 m, 3°. The marina's
+    /// false positives are near misses of 0.5-0.8 m from matches whose
+    /// σ is 0.35-0.5 m along a quay. Over marina seeds 1-6 (precision,
+    /// recall over pairs, mean ATE): 0.5 m 0.972-0.985, 0.58-0.61,
+    /// 0.478 m; 0.4 m 0.984-0.996, 0.51-0.55, 0.475 m; 0.35 m
+    /// 0.987-0.998, 0.48-0.51, 0.474 m. St Pere's false positives do not
+    /// depend on σ (0.986-0.991 at every value).
+    pub densify_max_sigma: Window,
 }
 
 impl Default for LoopConfig {
@@ -164,9 +176,10 @@ impl Default for LoopConfig {
             consistency_max_chi2: 11.34,
             drift_fraction: 0.02,
             drift_heading_sigma_rad: 2.0_f64.to_radians(),
-            densify: false,
+            densify: true,
             densify_max_window: Window::new(2.0, 2.0, 6.0_f64.to_radians()),
             densify_correlation: 1.0,
+            densify_max_sigma: Window::new(0.35, 0.35, 3.0_f64.to_radians()),
         }
     }
 }
@@ -241,6 +254,7 @@ impl LoopConfig {
         )?;
         check_range("loops.drift_fraction", self.drift_fraction, 0.0, 10.0)?;
         check_window("loops.densify_max_window", &self.densify_max_window)?;
+        check_window("loops.densify_max_sigma", &self.densify_max_sigma)?;
         check_range(
             "loops.densify_correlation",
             self.densify_correlation,
