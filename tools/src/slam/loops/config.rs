@@ -27,9 +27,10 @@ pub struct LoopConfig {
     /// with the largest predicted overlap first. Default 4. It sets the
     /// recall over node pairs against time, at about 1.2-1.4 ms per
     /// candidate (forward and symmetric match). On the St Pere replay
-    /// (seed 1, one thread), 4, 8, 12, 20 and 40 give pair recall 0.20,
-    /// 0.35, 0.47, 0.66 and 0.81 for 0.8, 1.5, 1.8, 2.8 and 3.2 s of
-    /// matching, ATE 0.200, 0.214, 0.206, 0.205 and 0.249 m.
+    /// (seed 1, one thread, without `densify`, which after the mission
+    /// matches the overlapping pairs left over), 4, 8, 12, 20 and 40 give
+    /// pair recall 0.20, 0.35, 0.47, 0.66 and 0.81 for 0.8, 1.5, 1.8, 2.8
+    /// and 3.2 s of matching, ATE 0.200, 0.214, 0.206, 0.205 and 0.249 m.
     pub max_candidates_per_node: usize,
     /// Search half-width in standard deviations of the relative
     /// uncertainty of the two nodes (propagated along the most certain path
