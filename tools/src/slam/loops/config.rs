@@ -117,16 +117,17 @@ pub struct LoopConfig {
     /// | | recall (pairs) | precision | ATE (m) | time |
     /// |---|---|---|---|---|
     /// | St Pere, off | 0.198-0.199 | 0.975-0.983 | 0.196-0.229 | |
-    /// | St Pere, on | 0.836-0.842 | 0.986-0.991 | 0.195-0.229 | +16 % of the instructions |
+    /// | St Pere, on | 0.836-0.842 | 0.986-0.991 | 0.195-0.229 | +21 % of the instructions (24.4 -> 29.6 G) |
     /// | marina, off | 0.32-0.34 | 0.990-0.997 | 0.31-0.93, mean 0.479 | |
     /// | marina, on | 0.48-0.51 | 0.987-0.998 | 0.32-0.91, mean 0.474 | up to +0.3 s |
     /// | canyon s1, off | 0.385 | 1.0 | 0.147 | |
     /// | canyon s1, on | 0.946 | 0.997 | 0.152 | about +0.4 s |
     ///
-    /// Without the design effect of `densify_correlation` (ρ = 0) the
-    /// extra loops, which repeat the same geometry-biased matches many
-    /// times over, pulled the trajectories with them: St Pere 0.207-0.248
-    /// m, marina mean 0.619 m, canyon 0.211 m. Without
+    /// Without the design effect of `densify_correlation` (ρ = 0; measured
+    /// with `densify_max_sigma` 0.5 m) the extra loops, which repeat the
+    /// same geometry-biased matches many times over, pulled the
+    /// trajectories with them: St Pere 0.207-0.248 m, marina mean 0.619 m,
+    /// canyon 0.211 m. Without
     /// `densify_max_sigma` (0.5 m as `max_sigma`) the marina's precision
     /// was 0.972-0.985 (recall 0.58-0.61).
     pub densify: bool,
