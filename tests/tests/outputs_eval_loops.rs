@@ -101,6 +101,10 @@ fn sweep_matches_the_hand_computed_curve() {
         assert_point(p, e);
     }
     assert_eq!(peak.best_point().unwrap().threshold, 0.5);
+    assert_eq!(
+        peak.summary(),
+        "second_peak_ratio: best F1 0.889 at second_peak_ratio <= 0.5: precision 0.800, recall 1.000 (5 accepted, 1 false)"
+    );
 
     // The CSV holds the same numbers; the PNG decodes.
     let csv = std::fs::read_to_string(dir.path().join("loops_pr.csv")).unwrap();
@@ -133,6 +137,34 @@ fn sweep_matches_the_hand_computed_curve() {
     );
     let png = image::open(dir.path().join("loops_pr.png")).unwrap();
     assert_eq!((png.width(), png.height()), (900, 700));
+}
+
+/// The pipeline's default matcher measures no second peak: that sweep is
+/// empty and says why, instead of claiming there is no correct candidate.
+#[test]
+fn a_metric_without_values_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let no_peaks: String = LOOPS_CSV
+        .lines()
+        .map(|line| {
+            let mut fields: Vec<&str> = line.split(',').collect();
+            if fields[6] != "second_peak_ratio" {
+                fields[6] = "";
+            }
+            fields.join(",") + "\n"
+        })
+        .collect();
+    std::fs::write(dir.path().join("loops.csv"), no_peaks).unwrap();
+    let result = evaluate_loops_dir(dir.path(), None).unwrap();
+    let peak = &result.sweeps[1];
+    assert!(peak.points.is_empty() && peak.best_point().is_none());
+    assert_eq!(
+        peak.summary(),
+        "second_peak_ratio: no candidate has a value, nothing to sweep \
+         (it is measured only with `[matcher] second_peak = true`)"
+    );
+    // The other metric is unaffected.
+    assert_eq!(result.sweeps[0].best_point().unwrap().threshold, 0.5);
 }
 
 #[test]

@@ -2,7 +2,7 @@
 //! run's `loops.csv`.
 
 use anyhow::Result;
-use echofield::slam::outputs::precision_recall::{Direction, evaluate_loops_dir};
+use echofield::slam::outputs::precision_recall::evaluate_loops_dir;
 use std::path::PathBuf;
 
 #[derive(Debug, clap::Args)]
@@ -40,24 +40,7 @@ pub fn run(args: Args) -> Result<()> {
         result.sweeps.first().map_or(0, |s| s.candidates)
     );
     for sweep in &result.sweeps {
-        let op = match sweep.direction {
-            Direction::AtLeast => ">=",
-            Direction::AtMost => "<=",
-        };
-        match sweep.best_point() {
-            Some(p) => println!(
-                "{}: best F1 {:.3} at {} {op} {}: precision {:.3}, recall {:.3} ({} accepted, {} false)",
-                sweep.metric,
-                p.f1,
-                sweep.metric,
-                p.threshold,
-                p.precision,
-                p.recall,
-                p.accepted,
-                p.false_positives
-            ),
-            None => println!("{}: no correct candidate, no best threshold", sweep.metric),
-        }
+        println!("{}", sweep.summary());
     }
     println!(
         "wrote {} and {}",

@@ -97,6 +97,37 @@ impl PrSweep {
     pub fn best_point(&self) -> Option<&PrPoint> {
         self.best.map(|i| &self.points[i])
     }
+
+    /// One line for the terminal: the best threshold, or why there is none.
+    pub fn summary(&self) -> String {
+        let op = match self.direction {
+            Direction::AtLeast => ">=",
+            Direction::AtMost => "<=",
+        };
+        match self.best_point() {
+            Some(p) => format!(
+                "{}: best F1 {:.3} at {} {op} {}: precision {:.3}, recall {:.3} ({} accepted, {} false)",
+                self.metric,
+                p.f1,
+                self.metric,
+                p.threshold,
+                p.precision,
+                p.recall,
+                p.accepted,
+                p.false_positives
+            ),
+            None if self.points.is_empty() => format!(
+                "{}: no candidate has a value, nothing to sweep{}",
+                self.metric,
+                if self.metric == "second_peak_ratio" {
+                    " (it is measured only with `[matcher] second_peak = true`)"
+                } else {
+                    ""
+                }
+            ),
+            None => format!("{}: no correct candidate, no best threshold", self.metric),
+        }
+    }
 }
 
 /// Sweeps `metric` over the rows with a ground-truth verdict.
