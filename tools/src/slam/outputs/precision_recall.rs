@@ -49,6 +49,8 @@ pub struct GateMetric {
     pub name: &'static str,
     pub direction: Direction,
     pub value: fn(&LoopRow) -> Option<f64>,
+    /// When candidates have no value for it, if that has a known reason.
+    pub absent_when: Option<&'static str>,
 }
 
 /// The metrics `eval-loops` sweeps.
@@ -57,11 +59,13 @@ pub const METRICS: [GateMetric; 2] = [
         name: "mean_intensity",
         direction: Direction::AtLeast,
         value: |r| r.mean_intensity,
+        absent_when: None,
     },
     GateMetric {
         name: "second_peak_ratio",
         direction: Direction::AtMost,
         value: |r| r.second_peak_ratio,
+        absent_when: Some("it is measured only with `[matcher] second_peak = true`"),
     },
 ];
 
@@ -82,6 +86,9 @@ pub struct PrPoint {
 pub struct PrSweep {
     pub metric: &'static str,
     pub direction: Direction,
+    /// [`GateMetric::absent_when`].
+    #[serde(skip)]
+    pub absent_when: Option<&'static str>,
     /// Candidates with a verdict.
     pub candidates: usize,
     /// Of which correct.
@@ -119,11 +126,8 @@ impl PrSweep {
             None if self.points.is_empty() => format!(
                 "{}: no candidate has a value, nothing to sweep{}",
                 self.metric,
-                if self.metric == "second_peak_ratio" {
-                    " (it is measured only with `[matcher] second_peak = true`)"
-                } else {
-                    ""
-                }
+                self.absent_when
+                    .map_or(String::new(), |why| format!(" ({why})"))
             ),
             None => format!("{}: no correct candidate, no best threshold", self.metric),
         }
@@ -195,6 +199,7 @@ pub fn sweep(rows: &[LoopRow], metric: &GateMetric) -> PrSweep {
     PrSweep {
         metric: metric.name,
         direction: metric.direction,
+        absent_when: metric.absent_when,
         candidates: judged.len(),
         positives,
         points,
