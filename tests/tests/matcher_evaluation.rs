@@ -77,3 +77,49 @@ fn matcher_beats_icp_on_the_simulated_marina() {
         "matcher {matcher:.3}, ICP {icp:.3}\n{table}"
     );
 }
+
+#[test]
+fn rotations_before_the_navigation_starts_are_not_drawn() {
+    // As on the St Pere logs, whose beams start ~183 s before the first
+    // DVL sample: the tank mission's DVL and heading start 30 s late, so
+    // dead reckoning does not cover its first rotations (which the ground
+    // truth, used to choose the pairs, does).
+    let mut mission = simulate_mission(&Scenario::named("tank").unwrap(), 1).unwrap();
+    let start_s = mission.beams[0].stamp_s + 30.0;
+    mission.dvl.retain(|d| d.stamp_s >= start_s);
+    mission.attitude.retain(|a| a.stamp_s >= start_s);
+    let config = MatchingConfig::default();
+    let rotations = MissionRotations::new(mission, &config).unwrap();
+    let uncovered: Vec<usize> = (0..rotations.rotations.len())
+        .filter(|&k| rotations.scan(k, &config).is_err())
+        .collect();
+    assert!(
+        uncovered.len() >= 2 && uncovered.iter().enumerate().all(|(i, &k)| i == k),
+        "uncovered rotations {uncovered:?}"
+    );
+    let eval = EvaluationConfig {
+        trials_per_pair: 1,
+        max_pairs_per_kind: 60,
+        ..EvaluationConfig::default()
+    };
+    let result = evaluate(&rotations, &config, &eval).unwrap();
+    let table = result.table();
+    assert_eq!(result.rotations_without_scan, uncovered.len(), "{table}");
+    // Every overlapping pair of covered rotations is drawn (fewer than 60
+    // of each kind) and matched; none involves an uncovered rotation.
+    assert!(!result.chosen_pairs.is_empty());
+    assert!(
+        result
+            .chosen_pairs
+            .iter()
+            .all(|p| !uncovered.contains(&p.scan) && !uncovered.contains(&p.image))
+    );
+    assert_eq!(
+        result.trials.len(),
+        2 * result.chosen_pairs.len(),
+        "{table}"
+    );
+    let drawn: usize = result.pairs.values().sum();
+    let overlapping: usize = result.overlapping_pairs.values().sum();
+    assert_eq!(drawn, overlapping, "{table}");
+}

@@ -20,8 +20,9 @@ Examples:
 For every pair of overlapping rotations (consecutive and non-consecutive,
 at most --max-pairs of each, chosen with the seed among all pairs where at
 least half of the points of S_K lie within 0.5 m of S_J at the true pose,
-with scans built with the true motion so that the pairs do not depend on
---navigation or --config), initial guesses are drawn around the true
+with scans built with the true motion so that the overlap does not depend
+on --navigation or --config; both rotations must have a scan with the
+navigation evaluated, which leaves out those it does not cover), initial guesses are drawn around the true
 relative pose with a translation error up to
 --max-error-m and a heading error up to --max-error-deg. The matcher
 searches a window just wider than that; ICP (point-to-point, on the same

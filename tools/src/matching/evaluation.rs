@@ -9,7 +9,13 @@
 //! `overlap_radius_m` of a point of `S_J`. Consecutive pairs (`K = J + 1`)
 //! and non-consecutive ones (`K ≥ J + 2`) are counted apart; at most
 //! `max_pairs_per_kind` of each are drawn with the seed from all the
-//! overlapping ones (no other filter).
+//! overlapping ones whose two rotations also have a scan with the
+//! navigation evaluated (no other filter). That leaves out the rotations
+//! with too few ranges and those the navigation does not cover: on the
+//! St Pere replay the beams of the first ~183 s precede the first DVL
+//! sample, so under dead reckoning (as in the pipeline, which makes no node
+//! of them) the rotations before it are not drawn, while the ground truth
+//! covers them.
 //!
 //! **Constraint.** For each pair, the geometry of the overlap decides how
 //! well any scan match can be determined: with `n` the normal of `S_J` at
@@ -187,7 +193,9 @@ pub fn evaluate(
     }
     let exact_scans = exact_scans(mission, config)?;
     let mut rng = ChaCha8Rng::seed_from_u64(eval.seed);
-    let (pairs, overlapping_pairs) = choose_pairs(&exact_scans, &truths, eval, &mut rng);
+    let matchable: Vec<bool> = scans.iter().map(Option::is_some).collect();
+    let (pairs, overlapping_pairs) =
+        choose_pairs(&exact_scans, &truths, &matchable, eval, &mut rng);
     let window = SearchWindow::new(
         eval.max_initial_error_m + 0.5,
         eval.max_initial_error_m + 0.5,
@@ -200,10 +208,10 @@ pub fn evaluate(
         by_image.entry(pair.image).or_default().push(*pair);
     }
     for (j, group) in by_image {
-        let image = mission.image(j, config)?;
         let Some(target) = &scans[j] else {
-            continue; // no scan with this navigation: nothing to match
+            continue; // not drawn: no scan with this navigation
         };
+        let image = mission.image(j, config)?;
         let target = &target.points;
         for pair in group {
             let (k, kind) = (pair.scan, pair.kind);
@@ -319,11 +327,13 @@ fn exact_scans(mission: &MissionRotations, config: &MatchingConfig) -> Result<Ve
         .collect())
 }
 
-/// Overlapping pairs (see the module doc), at most `max_pairs_per_kind` of
-/// each kind, and how many overlapping pairs of each kind there were.
+/// Overlapping pairs of `matchable` rotations (see the module doc), at
+/// most `max_pairs_per_kind` of each kind, and how many of them there were
+/// of each kind.
 fn choose_pairs(
     scans: &[Option<Scan>],
     truths: &[Option<Se2>],
+    matchable: &[bool],
     eval: &EvaluationConfig,
     rng: &mut ChaCha8Rng,
 ) -> (Vec<Pair>, BTreeMap<String, usize>) {
@@ -335,6 +345,9 @@ fn choose_pairs(
     let mut others = Vec::new();
     for k in 0..scans.len() {
         for j in 0..k {
+            if !(matchable[k] && matchable[j]) {
+                continue;
+            }
             let (Some(scan_k), Some(scan_j), Some(tree_j), Some(tk), Some(tj)) =
                 (&scans[k], &scans[j], &trees[j], truths[k], truths[j])
             else {
