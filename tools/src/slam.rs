@@ -100,7 +100,9 @@ pub fn load_mission(path: &Path) -> Result<Mission> {
         if logs.mission.beams.is_empty() {
             bail!(
                 "the St Pere logs in {} hold no sonar beams (the raw `_IS.log` is not in the folder); \
-                 `echofield simulate stpere` makes a replay with simulated beams",
+                 `echofield simulate --scenario stpere --data {} --output stpere-sim.mcap` \
+                 makes a replay with simulated beams",
+                path.display(),
                 path.display()
             );
         }
