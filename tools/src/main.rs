@@ -79,3 +79,112 @@ fn init_logging(verbose: u8) {
         .with_writer(std::io::stderr)
         .init();
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::CommandFactory;
+
+    /// The `echofield ...` command lines of `text`: whole lines (joined
+    /// across trailing backslashes; in Markdown only inside code fences)
+    /// and backquoted spans that are not just a command's name, with the
+    /// README's `cargo run --release -p echofield --` spelled `echofield`.
+    fn command_lines(text: &str, markdown: bool) -> Vec<String> {
+        let text = text
+            .replace("cargo run --release -p echofield --", "echofield")
+            .replace("\\\n", " ");
+        let mut found = Vec::new();
+        let mut fenced = false;
+        for line in text.lines() {
+            let line = line.trim();
+            if line.starts_with("```") {
+                fenced = !fenced;
+                continue;
+            }
+            if (fenced || !markdown) && line.starts_with("echofield ") {
+                found.push(line.to_string());
+                continue;
+            }
+            for (i, span) in line.split('`').enumerate() {
+                if i % 2 == 1 && span.starts_with("echofield ") && !names_a_command(span) {
+                    found.push(span.to_string());
+                }
+            }
+        }
+        found
+    }
+
+    /// `echofield run` or `echofield convert stpere`: a command's name,
+    /// not an example of its use.
+    fn names_a_command(span: &str) -> bool {
+        let mut command = Cli::command();
+        for word in span.split_whitespace().skip(1) {
+            match command.find_subcommand(word) {
+                Some(sub) => command = sub.clone(),
+                None => return false,
+            }
+        }
+        true
+    }
+
+    fn parse_all(source: &str, lines: &[String]) {
+        for line in lines {
+            if let Err(e) = Cli::try_parse_from(line.split_whitespace()) {
+                panic!("{source}: `{line}` does not parse:\n{e}");
+            }
+        }
+    }
+
+    fn help_examples(command: &clap::Command, found: &mut Vec<String>) {
+        for help in [command.get_after_help(), command.get_after_long_help()]
+            .into_iter()
+            .flatten()
+        {
+            found.extend(command_lines(&help.to_string(), false));
+        }
+        for sub in command.get_subcommands() {
+            help_examples(sub, found);
+        }
+    }
+
+    #[test]
+    fn every_example_in_the_help_parses() {
+        let mut found = Vec::new();
+        help_examples(&Cli::command(), &mut found);
+        assert!(found.len() >= 30, "{found:#?}");
+        parse_all("--help", &found);
+    }
+
+    #[test]
+    fn every_command_in_the_documentation_parses() {
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+        let mut files = vec![
+            root.join("README.md"),
+            root.join("ARCHITECTURE.md"),
+            root.join("tools/peers/README.md"),
+            root.join("datasets/README.md"),
+        ];
+        for entry in std::fs::read_dir(root.join("datasets")).unwrap() {
+            let readme = entry.unwrap().path().join("README.md");
+            if readme.is_file() {
+                files.push(readme);
+            }
+        }
+        let mut total = 0;
+        for file in &files {
+            let text = std::fs::read_to_string(file).unwrap();
+            let found: Vec<String> = command_lines(&text, true)
+                .into_iter()
+                // Placeholders such as `echofield run DIR` are syntax, not
+                // examples.
+                .filter(|l| {
+                    !l.split_whitespace()
+                        .any(|w| w.chars().all(|c| c.is_ascii_uppercase()))
+                })
+                .collect();
+            total += found.len();
+            parse_all(&file.display().to_string(), &found);
+        }
+        assert!(total >= 10, "{total} commands in {files:?}");
+    }
+}
