@@ -21,13 +21,18 @@ Examples:
   # The real St Pere marina logs against DGPS (trajectory only)
   echofield bench-dead-reckoning --stpere datasets/stpere-marina
 
+  # A mission file with ground truth (e.g. from `echofield simulate`)
+  echofield bench-dead-reckoning --mission stpere-sim.mcap
+
   # Other noise parameters: a TOML file with a [dead_reckoning] section
   echofield bench-dead-reckoning --scenario marina --config dr.toml
 
-For simulated missions (exact ground truth) it prints the distortion of the
-rotations: the distance between the dead-reckoning and the exact motion
-compensation of the point 5 m along every beam, and the error of the motion
-over each rotation; for built-in scenarios the fraction of scan points
+For simulated missions and mission files with beams and ground truth it
+prints the distortion of the rotations: the distance between the
+dead-reckoning and the exact motion compensation of the point 5 m along
+every beam, and the error of the motion over each rotation (rotations
+outside the dead reckoning's span, such as those of the St Pere replay
+before its first DVL sample, are left out); for built-in scenarios the fraction of scan points
 within 0.1 / 0.3 / 1 m of the environment's walls (dead reckoning, and
 exact compensation for reference); and for every mission the trajectory
 error at the ground-truth stamps (ATE RMSE after SE(2) alignment; mean and
@@ -37,15 +42,18 @@ max after moving the start onto the ground truth).";
 #[command(after_help = EXAMPLES)]
 pub struct Args {
     /// Built-in scenario to simulate.
-    #[arg(long, conflicts_with = "stpere",
+    #[arg(long, conflicts_with_all = ["stpere", "mission"],
           value_parser = clap::builder::PossibleValuesParser::new(Scenario::NAMES))]
     pub scenario: Option<String>,
     /// Seed of the simulation.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// A folder of real St Pere marina logs (DGPS as ground truth).
-    #[arg(long)]
+    #[arg(long, conflicts_with = "mission")]
     pub stpere: Option<PathBuf>,
+    /// A mission file with ground truth (MCAP), instead of --scenario.
+    #[arg(long)]
+    pub mission: Option<PathBuf>,
     /// Configuration (TOML, as for `echofield match`; its
     /// [dead_reckoning] and [rotation] sections are used).
     #[arg(long)]
@@ -57,25 +65,29 @@ pub fn run(args: Args) -> Result<()> {
         Some(path) => MatchingConfig::from_toml_file(path)?,
         None => MatchingConfig::default(),
     };
-    let (mission, scenario) = match (&args.scenario, &args.stpere) {
-        (Some(name), None) => {
+    let (mission, scenario) = match (&args.scenario, &args.stpere, &args.mission) {
+        (Some(name), None, None) => {
             let scenario = Scenario::named(name)?;
             let mission = simulate_mission(&scenario, args.seed)
                 .with_context(|| format!("simulating the {name} scenario"))?;
             (mission, Some(scenario))
         }
-        (None, Some(dir)) => {
+        (None, Some(dir), None) => {
+            // Real logs: navigation only (the St Pere folder holds no beams).
             let logs = read_stpere_dir(dir)
                 .with_context(|| format!("reading the St Pere logs in {}", dir.display()))?;
-            (logs.mission, None)
+            let nav = dead_reckoning::run(&logs.mission, &config.dead_reckoning)
+                .context("dead reckoning")?;
+            return print_trajectory(&logs.mission, &nav);
         }
-        _ => anyhow::bail!("give either --scenario or --stpere"),
-    };
-    let Some(scenario) = scenario else {
-        // Real logs: navigation only (the St Pere folder may hold no beams).
-        let nav =
-            dead_reckoning::run(&mission, &config.dead_reckoning).context("dead reckoning")?;
-        return print_trajectory(&mission, &nav);
+        (None, None, Some(path)) => {
+            let mission = echofield::matching::load_mission(path)?;
+            if mission.ground_truth.len() < 2 {
+                anyhow::bail!("{} has no ground truth to compare with", path.display());
+            }
+            (mission, None)
+        }
+        _ => anyhow::bail!("give one of --scenario, --stpere or --mission"),
     };
     let name = mission.name.clone();
     let rotations = MissionRotations::new(mission, &config)?;
@@ -97,6 +109,9 @@ pub fn run(args: Args) -> Result<()> {
         d.rotation_motion_m.max,
         d.rotation_motion_deg.max
     );
+    let Some(scenario) = scenario else {
+        return Ok(()); // no map of the walls
+    };
     for (label, navigation) in [("dead reckoning", nav), ("exact", &truth)] {
         let w = wall_fractions(
             mission,

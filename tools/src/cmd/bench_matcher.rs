@@ -113,7 +113,12 @@ pub fn run(args: Args) -> Result<()> {
         seed: args.seed,
         ..EvaluationConfig::default()
     };
-    let result = evaluate(&rotations, &config, &eval)?;
+    let source = match &args.mission {
+        Some(path) => path.display().to_string(),
+        None => format!("the simulated {name} mission"),
+    };
+    let result = evaluate(&rotations, &config, &eval)
+        .with_context(|| format!("evaluating the matcher on {source}"))?;
     let table = result.table();
     println!(
         "{name}, motion compensation by {:?}: {} rotations ({} without a scan), overlapping pairs {:?}, evaluated {:?}\n\n{table}",

@@ -1,0 +1,94 @@
+//! The benchmark commands on a mission file (`--mission`): they read it,
+//! report on it, and refuse one without ground truth.
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn sample() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../datasets/samples/tank-seed1.mcap")
+}
+
+fn echofield(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_echofield"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn stdout_of(run: &Output) -> String {
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    String::from_utf8_lossy(&run.stdout).into_owned()
+}
+
+/// The number after `key` in `text`.
+fn number_after(text: &str, key: &str) -> f64 {
+    let rest = &text[text.find(key).unwrap_or_else(|| panic!("{key} in {text}")) + key.len()..];
+    let token: String = rest
+        .trim_start()
+        .chars()
+        .take_while(|c| c.is_ascii_digit() || *c == '.')
+        .collect();
+    token.parse().unwrap_or_else(|_| panic!("{key} in {text}"))
+}
+
+#[test]
+fn bench_dead_reckoning_reports_on_a_mission_file() {
+    let sample = sample();
+    let out = stdout_of(&echofield(&[
+        "bench-dead-reckoning",
+        "--mission",
+        sample.to_str().unwrap(),
+    ]));
+    // The sample is the 2-minute tank mission: 10 rotations, every one
+    // inside the dead reckoning's span.
+    assert!(out.contains(": 10 rotations"), "{out}");
+    assert!(out.contains("distortion over 10 rotations"), "{out}");
+    let ate = number_after(&out, "ATE RMSE (SE(2)-aligned)");
+    assert!(ate > 0.0 && ate < 2.0, "{out}");
+    // No map of the walls for a mission file.
+    assert!(!out.contains("near walls"), "{out}");
+}
+
+#[test]
+fn bench_matcher_reports_on_a_mission_file() {
+    let sample = sample();
+    let out = stdout_of(&echofield(&[
+        "bench-matcher",
+        "--mission",
+        sample.to_str().unwrap(),
+        "--trials",
+        "1",
+        "--max-pairs",
+        "5",
+    ]));
+    assert!(out.contains("evaluated"), "{out}");
+    assert!(out.contains("| Consecutive | AcousticImage |"), "{out}");
+    assert!(out.contains("| NonConsecutive | Icp |"), "{out}");
+}
+
+#[test]
+fn a_mission_without_ground_truth_is_refused_by_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let mission = dir.path().join("ping360.mcap");
+    let log = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../datasets/msis-real/ping360/Sensor_Log_01__inside_base.bin");
+    let convert = echofield(&[
+        "convert",
+        "ping360",
+        log.to_str().unwrap(),
+        "--output",
+        mission.to_str().unwrap(),
+    ]);
+    assert!(convert.status.success());
+    for command in ["bench-dead-reckoning", "bench-matcher"] {
+        let run = echofield(&[command, "--mission", mission.to_str().unwrap()]);
+        assert!(!run.status.success(), "{command}");
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert!(stderr.contains("ping360.mcap"), "{command}: {stderr}");
+        assert!(stderr.contains("ground truth"), "{command}: {stderr}");
+    }
+}
