@@ -97,6 +97,12 @@ fn rotations_before_the_navigation_starts_are_not_drawn() {
         uncovered.len() >= 2 && uncovered.iter().enumerate().all(|(i, &k)| i == k),
         "uncovered rotations {uncovered:?}"
     );
+    let last = rotations.rotations.len() - 1;
+    assert_eq!(rotations.covered_rotations(), Some((uncovered.len(), last)));
+    // The error says which rotations can be used.
+    let message = format!("{:#}", rotations.scan(0, &config).unwrap_err());
+    let covered = format!("the navigation covers rotations {}-{last}", uncovered.len());
+    assert!(message.contains(&covered), "{message}");
     let eval = EvaluationConfig {
         trials_per_pair: 1,
         max_pairs_per_kind: 60,

@@ -15,6 +15,7 @@ pub mod plots;
 
 use anyhow::{Context, Result, bail};
 use echofield_datasets::{mcap, miniking, ping360, stpere};
+use echofield_frontend::FrontendError;
 use echofield_frontend::dead_reckoning::{self, DeadReckoningConfig, Navigation};
 use echofield_frontend::image::{AcousticImage, ImageConfig};
 use echofield_frontend::matcher::{MatcherConfig, SearchWindow};
@@ -203,7 +204,37 @@ impl MissionRotations {
             &self.mission.mounting,
             rotation.reference_stamp_s,
         )
-        .with_context(|| format!("motion compensation of rotation {k}"))
+        .map_err(|e| {
+            let hint = match (&e, self.covered_rotations()) {
+                (FrontendError::OutsideNavigation { .. }, Some((first, last))) => {
+                    format!(" (the navigation covers rotations {first}-{last})")
+                }
+                (FrontendError::OutsideNavigation { .. }, None) => {
+                    " (the navigation covers no whole rotation)".to_string()
+                }
+                _ => String::new(),
+            };
+            anyhow::Error::new(e).context(format!("motion compensation of rotation {k}{hint}"))
+        })
+    }
+
+    /// The first and last rotations whose beams all lie within the
+    /// navigation's span (e.g. on the St Pere logs the beams start ~183 s
+    /// before the first DVL sample).
+    pub fn covered_rotations(&self) -> Option<(usize, usize)> {
+        let covered = |r: &Rotation| {
+            let beams = &self.mission.beams[r.beams.clone()];
+            match (beams.first(), beams.last()) {
+                (Some(a), Some(b)) => {
+                    self.navigation.pose_at(a.stamp_s).is_ok()
+                        && self.navigation.pose_at(b.stamp_s).is_ok()
+                }
+                _ => false,
+            }
+        };
+        let first = self.rotations.iter().position(covered)?;
+        let last = self.rotations.iter().rposition(covered)?;
+        Some((first, last))
     }
 
     /// `S_k` and `I_k` of rotation `k`. The image is built with the scan's
