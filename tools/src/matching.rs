@@ -179,6 +179,49 @@ impl MissionRotations {
         Ok(())
     }
 
+    /// Replaces the navigation by the one that the SLAM pipeline's second
+    /// pass (`[motion_compensation] refine`) compensates the motion with:
+    /// the dead reckoning bent through the optimised node poses of a run
+    /// of [`crate::slam::run_mission`] with `slam`, whose dead reckoning,
+    /// rotation, segmentation and image sections are replaced by `config`'s
+    /// (the run's dead reckoning is then the one bent). No ground truth is
+    /// used. Returns the run's report.
+    pub fn use_slam_navigation(
+        &mut self,
+        config: &MatchingConfig,
+        slam: &crate::slam::SlamConfig,
+    ) -> Result<crate::slam::result::Report> {
+        if self.stationary {
+            bail!(
+                "{}: a stationary recording has no trajectory to refine",
+                self.mission.name
+            );
+        }
+        let slam = crate::slam::SlamConfig {
+            dead_reckoning: config.dead_reckoning.clone(),
+            rotation: config.rotation.clone(),
+            segmentation: config.segmentation.clone(),
+            image: config.image.clone(),
+            ..slam.clone()
+        };
+        let out = crate::slam::run_mission(&self.mission, &slam, &crate::slam::NoProgress)
+            .context("the SLAM run whose trajectory compensates the motion")?;
+        let stamps: Vec<f64> = out.nodes.iter().map(|n| n.stamp_s).collect();
+        let dead_reckoning: Vec<Se2> = out.nodes.iter().map(|n| n.dead_reckoning).collect();
+        let optimised: Vec<Se2> = out.nodes.iter().map(|n| n.optimised).collect();
+        let navigation =
+            dead_reckoning::run(&self.mission, &config.dead_reckoning).context("dead reckoning")?;
+        self.navigation = crate::slam::refine::refined_navigation(
+            &navigation,
+            &stamps,
+            &dead_reckoning,
+            &optimised,
+            config.dead_reckoning.max_extrapolation_s,
+        )
+        .context("navigation from the SLAM trajectory")?;
+        Ok(out.report)
+    }
+
     /// Loads, navigates and cuts a mission file.
     pub fn load(path: &Path, config: &MatchingConfig) -> Result<Self> {
         Self::new(load_mission(path)?, config)

@@ -51,6 +51,21 @@ fn bench_dead_reckoning_reports_on_a_mission_file() {
     assert!(ate > 0.0 && ate < 2.0, "{out}");
     // No map of the walls for a mission file.
     assert!(!out.contains("near walls"), "{out}");
+
+    // With --slam, also the distortion along a SLAM run's trajectory.
+    let out = stdout_of(&echofield(&[
+        "bench-dead-reckoning",
+        "--mission",
+        sample.to_str().unwrap(),
+        "--slam",
+    ]));
+    let key = "motion over a rotation median";
+    let dead_reckoning = number_after(&out, key);
+    let slam_line = out
+        .lines()
+        .find(|l| l.starts_with("distortion along the SLAM trajectory, ATE"))
+        .unwrap_or_else(|| panic!("{out}"));
+    assert!(number_after(slam_line, key) < dead_reckoning, "{out}");
 }
 
 #[test]
@@ -68,6 +83,23 @@ fn bench_matcher_reports_on_a_mission_file() {
     assert!(out.contains("evaluated"), "{out}");
     assert!(out.contains("| Consecutive | AcousticImage |"), "{out}");
     assert!(out.contains("| NonConsecutive | Icp |"), "{out}");
+
+    let out = stdout_of(&echofield(&[
+        "bench-matcher",
+        "--mission",
+        sample.to_str().unwrap(),
+        "--trials",
+        "1",
+        "--max-pairs",
+        "5",
+        "--navigation",
+        "slam",
+    ]));
+    assert!(
+        out.contains("SLAM run for the motion compensation: ATE RMSE"),
+        "{out}"
+    );
+    assert!(out.contains("motion compensation by Slam"), "{out}");
 }
 
 #[test]

@@ -3,9 +3,10 @@
 
 use anyhow::{Context, Result};
 use echofield::matching::navigation_eval::{
-    distortion, ground_truth_navigation, trajectory_errors, wall_fractions,
+    Distortion, distortion, ground_truth_navigation, trajectory_errors, wall_fractions,
 };
 use echofield::matching::{MatchingConfig, MissionRotations};
+use echofield::slam::SlamConfig;
 use echofield_datasets::sim::{Scenario, simulate_mission};
 use echofield_datasets::stpere::read_stpere_dir;
 use echofield_frontend::dead_reckoning::{self, Navigation};
@@ -21,8 +22,9 @@ Examples:
   # The real St Pere marina logs against DGPS (trajectory only)
   echofield bench-dead-reckoning --stpere datasets/stpere-marina
 
-  # A mission file with ground truth (e.g. from `echofield simulate`)
-  echofield bench-dead-reckoning --mission stpere-sim.mcap
+  # A mission file with ground truth (e.g. from `echofield simulate`), and
+  # the distortion left along the trajectory of a SLAM run
+  echofield bench-dead-reckoning --mission stpere-sim.mcap --slam
 
   # Other noise parameters: a TOML file with a [dead_reckoning] section
   echofield bench-dead-reckoning --scenario marina --config dr.toml
@@ -32,11 +34,14 @@ prints the distortion of the rotations: the distance between the
 dead-reckoning and the exact motion compensation of the point 5 m along
 every beam, and the error of the motion over each rotation (rotations
 outside the dead reckoning's span, such as those of the St Pere replay
-before its first DVL sample, are left out); for built-in scenarios the fraction of scan points
-within 0.1 / 0.3 / 1 m of the environment's walls (dead reckoning, and
-exact compensation for reference); and for every mission the trajectory
-error at the ground-truth stamps (ATE RMSE after SE(2) alignment; mean and
-max after moving the start onto the ground truth).";
+before its first DVL sample, are left out); for built-in scenarios the
+fraction of scan points within 0.1 / 0.3 / 1 m of the environment's walls
+(dead reckoning, and exact compensation for reference); and for every
+mission the trajectory error at the ground-truth stamps (ATE RMSE after
+SE(2) alignment; mean and max after moving the start onto the ground
+truth). --slam adds the distortion left when the motion is compensated
+along the trajectory of a SLAM run, as the pipeline's second pass does
+with `[motion_compensation] refine = true`.";
 
 #[derive(Debug, clap::Args)]
 #[command(after_help = EXAMPLES)]
@@ -58,6 +63,11 @@ pub struct Args {
     /// [dead_reckoning] and [rotation] sections are used).
     #[arg(long)]
     pub config: Option<PathBuf>,
+    /// Also the distortion left when the motion is compensated along the
+    /// trajectory of a SLAM run (default pipeline configuration), as the
+    /// pipeline's second pass does with `[motion_compensation] refine`.
+    #[arg(long, conflicts_with = "stpere")]
+    pub slam: bool,
 }
 
 pub fn run(args: Args) -> Result<()> {
@@ -90,14 +100,48 @@ pub fn run(args: Args) -> Result<()> {
         _ => anyhow::bail!("give one of --scenario, --stpere or --mission"),
     };
     let name = mission.name.clone();
-    let rotations = MissionRotations::new(mission, &config)?;
+    let mut rotations = MissionRotations::new(mission, &config)?;
     let (mission, nav) = (&rotations.mission, &rotations.navigation);
     println!("{name}: {} rotations", rotations.rotations.len());
     print_trajectory(mission, nav)?;
     let truth = ground_truth_navigation(mission)?;
-    let d = distortion(mission, &rotations.rotations, nav, &truth)?;
+    print_distortion("", &distortion(mission, &rotations.rotations, nav, &truth)?);
+    if let Some(scenario) = &scenario {
+        for (label, navigation) in [("dead reckoning", nav), ("exact", &truth)] {
+            let w = wall_fractions(
+                mission,
+                &rotations.rotations,
+                navigation,
+                scenario.environment(),
+            )?;
+            println!(
+                "scan points near walls ({label}): {:.1}% within 0.1 m, {:.1}% within 0.3 m, {:.1}% within 1 m ({} points)",
+                100.0 * w.within_0_1_m,
+                100.0 * w.within_0_3_m,
+                100.0 * w.within_1_m,
+                w.points
+            );
+        }
+    }
+    if args.slam {
+        let report = rotations.use_slam_navigation(&config, &SlamConfig::default())?;
+        let d = distortion(
+            &rotations.mission,
+            &rotations.rotations,
+            &rotations.navigation,
+            &truth,
+        )?;
+        let ate = report
+            .ate_rmse_m
+            .map_or(String::new(), |a| format!(", ATE {a:.3} m"));
+        print_distortion(&format!(" along the SLAM trajectory{ate}"), &d);
+    }
+    Ok(())
+}
+
+fn print_distortion(label: &str, d: &Distortion) {
     println!(
-        "distortion over {} rotations: point at 5 m median {:.3} m, p90 {:.3} m, max {:.3} m; motion over a rotation median {:.3} m / {:.2}°, p90 {:.3} m / {:.2}°, max {:.3} m / {:.2}°",
+        "distortion{label} over {} rotations: point at 5 m median {:.3} m, p90 {:.3} m, max {:.3} m; motion over a rotation median {:.3} m / {:.2}°, p90 {:.3} m / {:.2}°, max {:.3} m / {:.2}°",
         d.rotations,
         d.point_5m_m.median,
         d.point_5m_m.p90,
@@ -109,25 +153,6 @@ pub fn run(args: Args) -> Result<()> {
         d.rotation_motion_m.max,
         d.rotation_motion_deg.max
     );
-    let Some(scenario) = scenario else {
-        return Ok(()); // no map of the walls
-    };
-    for (label, navigation) in [("dead reckoning", nav), ("exact", &truth)] {
-        let w = wall_fractions(
-            mission,
-            &rotations.rotations,
-            navigation,
-            scenario.environment(),
-        )?;
-        println!(
-            "scan points near walls ({label}): {:.1}% within 0.1 m, {:.1}% within 0.3 m, {:.1}% within 1 m ({} points)",
-            100.0 * w.within_0_1_m,
-            100.0 * w.within_0_3_m,
-            100.0 * w.within_1_m,
-            w.points
-        );
-    }
-    Ok(())
 }
 
 fn print_trajectory(mission: &Mission, nav: &Navigation) -> Result<()> {

@@ -5,6 +5,7 @@ use anyhow::{Context, Result};
 use echofield::matching::evaluation::{EvaluationConfig, evaluate};
 use echofield::matching::{MatchingConfig, MissionRotations};
 use echofield::output::write_bytes_atomic;
+use echofield::slam::SlamConfig;
 use echofield_datasets::sim::{Scenario, simulate_mission};
 use std::path::PathBuf;
 
@@ -16,6 +17,9 @@ Examples:
 
   # A mission file with ground truth instead of a built-in scenario
   echofield bench-matcher --mission stpere-sim.mcap --trials 3
+
+  # The scans and images as the refining second pass of `run` builds them
+  echofield bench-matcher --mission stpere-sim.mcap --navigation slam
 
 For every pair of overlapping rotations (consecutive and non-consecutive,
 at most --max-pairs of each, chosen with the seed among all pairs where at
@@ -41,12 +45,22 @@ along a quay, that no search can resolve; the rest are search failures).
 
 --navigation ground-truth compensates the vehicle's motion within each
 rotation with the ground truth instead of dead reckoning: the scans and
-images are then exact and the table measures the matcher alone.";
+images are then exact and the table measures the matcher alone.
+--navigation slam first runs the SLAM pipeline (default configuration) and
+compensates the motion along its trajectory, as the pipeline's second pass
+does with `[motion_compensation] refine = true`; no ground truth is used
+for it.";
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum NavigationSource {
+    /// The mission's dead reckoning, as the pipeline's first pass.
     DeadReckoning,
+    /// The ground truth: exact scans and images, the matcher alone.
     GroundTruth,
+    /// The dead reckoning bent through the node poses of a SLAM run with
+    /// the default pipeline configuration, as the pipeline's second pass
+    /// with `[motion_compensation] refine = true`.
+    Slam,
 }
 
 #[derive(Debug, clap::Args)]
@@ -102,8 +116,15 @@ pub fn run(args: Args) -> Result<()> {
     };
     let name = mission.name.clone();
     let mut rotations = MissionRotations::new(mission, &config)?;
-    if args.navigation == NavigationSource::GroundTruth {
-        rotations.use_ground_truth_navigation()?;
+    match args.navigation {
+        NavigationSource::DeadReckoning => {}
+        NavigationSource::GroundTruth => rotations.use_ground_truth_navigation()?,
+        NavigationSource::Slam => {
+            let report = rotations.use_slam_navigation(&config, &SlamConfig::default())?;
+            if let Some(ate) = report.ate_rmse_m {
+                println!("SLAM run for the motion compensation: ATE RMSE {ate:.3} m");
+            }
+        }
     }
     let eval = EvaluationConfig {
         trials_per_pair: args.trials,
