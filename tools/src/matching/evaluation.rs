@@ -1,9 +1,10 @@
 //! Evaluation of the acoustic-image matcher against ground truth, side by
 //! side with point-to-point ICP on the same extracted ranges.
 //!
-//! **Pairs.** Rotation pairs `(K, J)` of a mission with ground truth are
-//! chosen on ground truth alone, so that every navigation and config
-//! evaluated sees the same pairs: the scans are built with the true motion
+//! **Pairs.** Whether rotation pairs `(K, J)` of a mission with ground
+//! truth overlap is decided on ground truth alone, so that every navigation
+//! and config evaluated sees the same overlapping pairs (of the rotations
+//! it covers): the scans are built with the true motion
 //! within each rotation, and a pair overlaps when, with the true pose, at
 //! least `min_overlap` of the points of `S_K` lie within
 //! `overlap_radius_m` of a point of `S_J`. Consecutive pairs (`K = J + 1`)
