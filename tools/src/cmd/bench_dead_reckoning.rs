@@ -60,7 +60,8 @@ pub struct Args {
     #[arg(long)]
     pub mission: Option<PathBuf>,
     /// Configuration (TOML, as for `echofield match`; its
-    /// [dead_reckoning] and [rotation] sections are used).
+    /// [dead_reckoning] and [rotation] sections are used, and with --slam
+    /// also [segmentation] and [image], for the SLAM run).
     #[arg(long)]
     pub config: Option<PathBuf>,
     /// Also the distortion left when the motion is compensated along the
