@@ -4,10 +4,6 @@
 use std::path::PathBuf;
 use std::process::{Command, Output};
 
-fn sample() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../datasets/samples/tank-seed1.mcap")
-}
-
 fn echofield(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_echofield"))
         .args(args)
@@ -24,6 +20,16 @@ fn stdout_of(run: &Output) -> String {
     String::from_utf8_lossy(&run.stdout).into_owned()
 }
 
+/// The standard output of benchmark `command` on the committed tank
+/// sample (`--mission`) with `extra` arguments; it must succeed.
+fn on_sample(command: &str, extra: &[&str]) -> String {
+    let sample =
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../datasets/samples/tank-seed1.mcap");
+    let mut args = vec![command, "--mission", sample.to_str().unwrap()];
+    args.extend_from_slice(extra);
+    stdout_of(&echofield(&args))
+}
+
 /// The number after `key` in `text`.
 fn number_after(text: &str, key: &str) -> f64 {
     let rest = &text[text.find(key).unwrap_or_else(|| panic!("{key} in {text}")) + key.len()..];
@@ -37,12 +43,7 @@ fn number_after(text: &str, key: &str) -> f64 {
 
 #[test]
 fn bench_dead_reckoning_reports_on_a_mission_file() {
-    let sample = sample();
-    let out = stdout_of(&echofield(&[
-        "bench-dead-reckoning",
-        "--mission",
-        sample.to_str().unwrap(),
-    ]));
+    let out = on_sample("bench-dead-reckoning", &[]);
     // The sample is the 2-minute tank mission: 10 rotations, every one
     // inside the dead reckoning's span.
     assert!(out.contains(": 10 rotations"), "{out}");
@@ -53,12 +54,7 @@ fn bench_dead_reckoning_reports_on_a_mission_file() {
     assert!(!out.contains("near walls"), "{out}");
 
     // With --slam, also the distortion along a SLAM run's trajectory.
-    let out = stdout_of(&echofield(&[
-        "bench-dead-reckoning",
-        "--mission",
-        sample.to_str().unwrap(),
-        "--slam",
-    ]));
+    let out = on_sample("bench-dead-reckoning", &["--slam"]);
     let key = "motion over a rotation median";
     let dead_reckoning = number_after(&out, key);
     let slam_line = out
@@ -70,31 +66,16 @@ fn bench_dead_reckoning_reports_on_a_mission_file() {
 
 #[test]
 fn bench_matcher_reports_on_a_mission_file() {
-    let sample = sample();
-    let out = stdout_of(&echofield(&[
-        "bench-matcher",
-        "--mission",
-        sample.to_str().unwrap(),
-        "--trials",
-        "1",
-        "--max-pairs",
-        "5",
-    ]));
+    let few = ["--trials", "1", "--max-pairs", "5"];
+    let out = on_sample("bench-matcher", &few);
     assert!(out.contains("evaluated"), "{out}");
     assert!(out.contains("| Consecutive | AcousticImage |"), "{out}");
     assert!(out.contains("| NonConsecutive | Icp |"), "{out}");
 
-    let out = stdout_of(&echofield(&[
+    let out = on_sample(
         "bench-matcher",
-        "--mission",
-        sample.to_str().unwrap(),
-        "--trials",
-        "1",
-        "--max-pairs",
-        "5",
-        "--navigation",
-        "slam",
-    ]));
+        &[&few[..], &["--navigation", "slam"]].concat(),
+    );
     assert!(
         out.contains("SLAM run for the motion compensation: ATE RMSE"),
         "{out}"
