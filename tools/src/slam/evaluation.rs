@@ -13,7 +13,12 @@
 //!   is within
 //!   `true_positive_translation_m` and `true_positive_rotation_deg` of the
 //!   ground-truth relative pose. **Precision** = true positives / accepted
-//!   loops (absent when none is accepted).
+//!   loops (1 when none is accepted). A partial loop
+//!   (`loops.densify_partial`) is judged the same way, on its whole
+//!   measurement, although its component along the unconstrained
+//!   direction is the estimate's; `loop_evaluation` also counts how many
+//!   partial loops are right on their constrained components alone
+//!   (translation across that direction, and heading).
 //! - **Ground-truth scan overlap** of a node pair `(j, k)`: the fraction of
 //!   the points of `S_k`, placed in `j`'s frame with the ground-truth
 //!   relative pose, that fall in a cell of side `overlap_distance_m`
@@ -87,6 +92,7 @@ pub fn evaluate(
     };
     let mut true_positive_pairs = HashSet::new();
     let (mut tp, mut fp, mut candidate_tp) = (0, 0, 0);
+    let (mut partial, mut partial_fp, mut partial_constrained) = (0, 0, 0);
     for record in loops.iter_mut() {
         let (j, k) = (record.from as usize, record.to as usize);
         record.ground_truth = relative(j, k);
@@ -107,6 +113,19 @@ pub fn evaluate(
                 true_positive_pairs.insert((j, k));
             } else {
                 fp += 1;
+            }
+            if let Some([ux, uy]) = record.unconstrained_direction {
+                partial += 1;
+                partial_fp += usize::from(!is_tp);
+                // The error across the unconstrained direction, in `from`'s
+                // frame like the direction.
+                let across = (matched.translation() - truth.translation())
+                    .dot(&nalgebra::Vector2::new(-uy, ux))
+                    .abs();
+                partial_constrained += usize::from(
+                    across <= eval.true_positive_translation_m
+                        && error.theta().abs().to_degrees() <= eval.true_positive_rotation_deg,
+                );
             }
         }
     }
@@ -152,6 +171,9 @@ pub fn evaluate(
         recalled_pairs,
         missed_revisits,
         candidate_true_positives: candidate_tp,
+        partial_loops: partial,
+        partial_false_positives: partial_fp,
+        partial_constrained_correct: partial_constrained,
     });
     report.definitions = definitions(config);
 }
@@ -278,7 +300,8 @@ fn definitions(config: &SlamConfig) -> BTreeMap<String, String> {
         ("loop_precision", "true positives / accepted loops (1 when no loop is accepted: no accepted loop is wrong; `loop_evaluation` then shows 0 true and 0 false positives)".to_string()),
         ("gt_overlap", format!("fraction of the points of S_k, placed in node j's frame with the ground-truth relative pose, that fall in a {0} m cell holding a point of S_j or next to one", e.overlap_distance_m)),
         ("recall_pair", format!("a node pair (j, k) with k - j >= {} and ground-truth scan overlap >= {} (below that overlap a correctly registered pair cannot reach the quality gate's mean intensity {})", config.loops.min_separation_nodes, e.recall_min_overlap, config.loops.min_mean_intensity)),
-        ("loop_recall", format!("recall pairs joined by an accepted true-positive loop, over all recall pairs (each node is matched against at most {} older ones, so this stays well below 1)", config.loops.max_candidates_per_node)),
+        ("loop_recall", format!("recall pairs joined by an accepted true-positive loop, over all recall pairs (while the mission runs each node is matched against at most {} older ones; with loops.densify the overlapping pairs left are matched after it)", config.loops.max_candidates_per_node)),
+        ("partial_loop", format!("an accepted densified loop constrained across one horizontal direction and in heading only (loops.densify_partial); it is true or false by the whole-pose verdict like every loop, and `partial_constrained_correct` counts those whose error across that direction is within {} m and whose heading error is within {} deg", e.true_positive_translation_m, e.true_positive_rotation_deg)),
         ("loop_recall_revisits", "revisit nodes (the newer node of at least one recall pair) that are the newer node of an accepted true-positive loop, over all revisit nodes: how many returns to a known place were recognised".to_string()),
     ];
     entries

@@ -190,7 +190,11 @@ pub struct LoopRecord {
     /// `s(x*)` of eq. (5).
     pub score: Option<f64>,
     pub quality: Option<MatchQuality>,
-    /// Match covariance of `(x, y, θ)` (before the `min_sigma` floor).
+    /// Covariance of `measurement` `(x, y, θ)` (before the `min_sigma`
+    /// floor): the match's, or for a partial loop the match's marginal
+    /// across `unconstrained_direction` with a standard deviation of
+    /// [`PARTIAL_SIGMA_M`](crate::slam::loops::checks::PARTIAL_SIGMA_M)
+    /// along it.
     pub covariance: Option<Matrix3<f64>>,
     /// `S_from` vs `I_to`, when the forward match passed its checks.
     pub reverse: Option<ReverseCheck>,
@@ -201,6 +205,12 @@ pub struct LoopRecord {
     /// Found by the densification pass after the mission
     /// (`LoopConfig::densify`), not while the mission ran.
     pub densified: bool,
+    /// For a *partial* loop (`LoopConfig::densify_partial`), the unit
+    /// direction `[x, y]` in `from`'s frame along which the match could not
+    /// place `S_to` (a wall seen along its length): `measurement` takes
+    /// that component from `prior` and carries no information along it.
+    /// `None` for a loop constrained on every axis.
+    pub unconstrained_direction: Option<[f64; 2]>,
     /// The matcher's reason for "no match", when it gave one.
     pub no_match: Option<String>,
     /// Weight of the edge under the robust kernel at the final solution
@@ -287,6 +297,13 @@ pub struct LoopEvaluation {
     pub missed_revisits: Vec<u64>,
     /// Candidates (matched or not) whose match lies within the tolerances.
     pub candidate_true_positives: usize,
+    /// Accepted partial loops (`loops.densify_partial`; included in the
+    /// counts above), those of them false by the whole-pose verdict, and
+    /// those whose constrained components (the translation across the
+    /// unconstrained direction, and θ) are within the tolerances.
+    pub partial_loops: usize,
+    pub partial_false_positives: usize,
+    pub partial_constrained_correct: usize,
 }
 
 /// The content of `report.json`.

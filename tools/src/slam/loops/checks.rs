@@ -8,11 +8,15 @@
 //! 2. `quality`: mean intensity under the points, fraction of points inside
 //!    the image, and the second-peak ratio (a distinct maximum);
 //! 3. `covariance`: positive definite, standard deviations within
-//!    `max_sigma` (`densify_max_sigma` for a densification pair);
+//!    `max_sigma` (`densify_max_sigma` for a densification pair). With
+//!    `densify_partial`, a densification match that fails only along one
+//!    horizontal direction passes as a *partial* loop ([`unconstrained`],
+//!    [`partial_measurement`]);
 //! 4. `window_edge`: the maximum is not at the border of the searched
 //!    window (where the true peak may lie outside it); a match at the
 //!    border is searched once more over twice the window (at most
-//!    `max_window`) before this check is final;
+//!    `max_window`) before this check is final (for a partial loop, on
+//!    the constrained components only);
 //! 5. `reverse_mismatch`: the symmetric match `S_j` vs `I_k`, a climb to
 //!    the nearest maximum from the inverse of the forward result, must
 //!    agree with it.
@@ -28,7 +32,15 @@ use echofield_frontend::matcher::{
     MatchOutcome, MatchResult, MatcherConfig, SearchWindow, match_scan, match_scan_local,
 };
 use echofield_graph::Se2;
-use nalgebra::Matrix3;
+use nalgebra::{Matrix2, Matrix3, Vector2};
+
+/// Standard deviation (m) of a partial loop's measurement along its
+/// unconstrained direction: far beyond any relative uncertainty of two
+/// overlapping nodes, so the edge adds no information there (its
+/// information along it is 1/100 m⁻², against at least 1/0.35² ≈ 8 m⁻²
+/// across), while its covariance stays positive definite for the
+/// consistency test and the solver.
+pub const PARTIAL_SIGMA_M: f64 = 10.0;
 
 /// A pair to match: `S_to` against `I_from` around `prior = from_from_to`.
 #[derive(Clone, Debug)]
@@ -86,6 +98,7 @@ impl Candidate {
             accepted: false,
             rejected_by: None,
             densified: self.densify,
+            unconstrained_direction: None,
             no_match: None,
             robust_weight: None,
             ground_truth: None,
@@ -188,7 +201,74 @@ pub fn examine(
         Some(z) => record.measurement = Some(z),
         None => record.rejected_by = Some(RejectReason::ReverseMismatch),
     }
+    if record.rejected_by.is_none()
+        && let Some(u) = unconstrained(&m.covariance, candidate, config)
+        && let Some(z) = record.measurement
+    {
+        let (z, covariance) = partial_measurement(&z, &m.covariance, &candidate.prior, &u);
+        record.measurement = Some(z);
+        record.covariance = Some(covariance);
+        record.unconstrained_direction = Some([u.x, u.y]);
+    }
     Ok(record)
+}
+
+/// The unit direction (in `from`'s frame) along which a densification
+/// match is unconstrained, when `densify_partial` is on and the match
+/// fails `densify_max_sigma` along that direction only: the largest axis
+/// of its xy covariance exceeds the tighter of the x and y limits while
+/// the smallest axis and θ are within them. `None` for every other match
+/// (which then passes or fails the covariance check as a whole).
+pub fn unconstrained(
+    covariance: &Matrix3<f64>,
+    candidate: &Candidate,
+    config: &LoopConfig,
+) -> Option<Vector2<f64>> {
+    if !(candidate.densify && config.densify_partial) {
+        return None;
+    }
+    let max_sigma = &config.densify_max_sigma;
+    let cov = symmetric(*covariance);
+    if cov.cholesky().is_none() || max_sigma.bounds_sigma(&cov) {
+        return None;
+    }
+    let xy: Matrix2<f64> = cov.fixed_view::<2, 2>(0, 0).into_owned();
+    let eigen = xy.symmetric_eigen();
+    let (small, large) = if eigen.eigenvalues[0] <= eigen.eigenvalues[1] {
+        (0, 1)
+    } else {
+        (1, 0)
+    };
+    let limit = max_sigma.x_m.min(max_sigma.y_m);
+    let constrained = eigen.eigenvalues[small].sqrt() <= limit
+        && cov[(2, 2)].sqrt() <= max_sigma.theta_rad
+        && eigen.eigenvalues[large].sqrt() > limit;
+    constrained.then(|| eigen.eigenvectors.column(large).normalize())
+}
+
+/// A partial loop's measurement and covariance from the match `z` (with
+/// covariance `covariance`), the prior and the unconstrained direction
+/// `u`: along `u` the translation is the prior's; across it and in θ it
+/// is the match's, with the match's marginal covariance of those two;
+/// along `u` the standard deviation is [`PARTIAL_SIGMA_M`], uncorrelated.
+pub fn partial_measurement(
+    z: &Se2,
+    covariance: &Matrix3<f64>,
+    prior: &Se2,
+    u: &Vector2<f64>,
+) -> (Se2, Matrix3<f64>) {
+    let (zt, pt) = (z.translation(), prior.translation());
+    let t = zt + u * u.dot(&(pt - zt));
+    // Rows: the coordinates along u, across u (v) and θ.
+    let basis = Matrix3::new(u.x, u.y, 0.0, -u.y, u.x, 0.0, 0.0, 0.0, 1.0);
+    let mut q = basis * symmetric(*covariance) * basis.transpose();
+    for i in 1..3 {
+        q[(0, i)] = 0.0;
+        q[(i, 0)] = 0.0;
+    }
+    q[(0, 0)] = PARTIAL_SIGMA_M * PARTIAL_SIGMA_M;
+    let cov = symmetric(basis.transpose() * q * basis);
+    (Se2::new(t.x, t.y, z.theta()), cov)
 }
 
 /// Checks 2-4 of the module doc.
@@ -212,10 +292,18 @@ fn individual_checks(
     } else {
         &config.max_sigma
     };
-    if cov.cholesky().is_none() || !max_sigma.bounds_sigma(&cov) {
+    let partial = unconstrained(&m.covariance, candidate, config);
+    if partial.is_none() && (cov.cholesky().is_none() || !max_sigma.bounds_sigma(&cov)) {
         return Some(RejectReason::Covariance);
     }
-    let d = m.image_from_scan.to_vector() - candidate.prior.to_vector();
+    let mut d = m.image_from_scan.to_vector() - candidate.prior.to_vector();
+    // Along a partial loop's unconstrained direction the peak may lie
+    // anywhere, the window's edge included; that component is not used.
+    if let Some(u) = partial {
+        let along = u.dot(&d.xy());
+        d.x -= along * u.x;
+        d.y -= along * u.y;
+    }
     let dtheta = echofield_graph::wrap_angle(d.z);
     let margin = 1.0 - config.window_edge_fraction;
     let at_edge = |offset: f64, half: f64| offset.abs() >= margin * half;
@@ -306,5 +394,100 @@ mod tests {
         let record = large.record(12, &config);
         assert_eq!((record.from, record.to, record.examined_at), (0, 12, 12));
         assert!(record.matched.is_none() && !record.accepted);
+    }
+
+    /// A match whose xy covariance has standard deviations `along` (m) at
+    /// `angle` (rad) and `across` (m) perpendicular to it, and 1° in θ.
+    fn match_along(along: f64, across: f64, angle: f64) -> MatchResult {
+        let (s, c) = angle.sin_cos();
+        let r = Matrix2::new(c, -s, s, c);
+        let xy = r * Matrix2::new(along * along, 0.0, 0.0, across * across) * r.transpose();
+        let mut m = match_with_sigma(0.1);
+        m.covariance.fixed_view_mut::<2, 2>(0, 0).copy_from(&xy);
+        m
+    }
+
+    #[test]
+    fn a_densified_match_blind_along_one_direction_is_a_partial_loop() {
+        let config = LoopConfig::default();
+        let window = SearchWindow::new(0.5, 0.5, 0.05);
+        let angle = 30.0_f64.to_radians();
+        let m = match_along(0.8, 0.1, angle);
+        let mut c = candidate(SearchWindow::new(0.3, 0.3, 0.02));
+        // While the mission runs, such a match is rejected ...
+        assert_eq!(unconstrained(&m.covariance, &c, &config), None);
+        assert_eq!(
+            individual_checks(&m, &c, &window, &config),
+            Some(RejectReason::Covariance)
+        );
+        // ... in the densification pass it passes, blind along 30°.
+        c.densify = true;
+        let u = unconstrained(&m.covariance, &c, &config).unwrap();
+        assert!((u.x * angle.sin() - u.y * angle.cos()).abs() < 1e-9, "{u}");
+        assert!((u.norm() - 1.0).abs() < 1e-12);
+        assert_eq!(individual_checks(&m, &c, &window, &config), None);
+        // A peak at the window's edge along the blind direction is no
+        // reason to reject it; across it, it is.
+        let mut at_edge = m.clone();
+        at_edge.image_from_scan = Se2::new(0.49 * angle.cos(), 0.49 * angle.sin(), 0.0);
+        assert_eq!(individual_checks(&at_edge, &c, &window, &config), None);
+        // (y = 0.56·cos 30° = 0.485, beyond 95% of the 0.5 m half-width.)
+        at_edge.image_from_scan = Se2::new(-0.56 * angle.sin(), 0.56 * angle.cos(), 0.0);
+        assert_eq!(
+            individual_checks(&at_edge, &c, &window, &config),
+            Some(RejectReason::WindowEdge)
+        );
+        // Not when switched off, nor when the match is also unsure across
+        // the direction or in heading.
+        let off = LoopConfig {
+            densify_partial: false,
+            ..LoopConfig::default()
+        };
+        assert_eq!(unconstrained(&m.covariance, &c, &off), None);
+        assert_eq!(
+            individual_checks(&m, &c, &window, &off),
+            Some(RejectReason::Covariance)
+        );
+        let wide = match_along(0.8, 0.4, angle);
+        assert_eq!(unconstrained(&wide.covariance, &c, &config), None);
+        let mut turning = m.clone();
+        turning.covariance[(2, 2)] = 4.0_f64.to_radians().powi(2);
+        assert_eq!(unconstrained(&turning.covariance, &c, &config), None);
+        // A match within the limits on every axis is a full loop.
+        assert_eq!(
+            unconstrained(&match_with_sigma(0.2).covariance, &c, &config),
+            None
+        );
+    }
+
+    #[test]
+    fn a_partial_measurement_takes_only_the_blind_component_from_the_prior() {
+        let angle = 30.0_f64.to_radians();
+        let mut m = match_along(0.8, 0.1, angle);
+        m.covariance[(0, 2)] = 0.0002;
+        m.covariance[(2, 0)] = 0.0002;
+        m.covariance[(1, 2)] = -0.0001;
+        m.covariance[(2, 1)] = -0.0001;
+        assert!(m.covariance.cholesky().is_some());
+        let u = Vector2::new(angle.cos(), angle.sin());
+        let v = Vector2::new(-u.y, u.x);
+        let z = Se2::new(1.0, 2.0, 0.1);
+        let prior = Se2::new(1.6, 1.3, 0.04);
+        let (p, cov) = partial_measurement(&z, &m.covariance, &prior, &u);
+        // Along u the prior's, across u and in θ the match's.
+        assert!(u.dot(&(p.translation() - prior.translation())).abs() < 1e-12);
+        assert!(v.dot(&(p.translation() - z.translation())).abs() < 1e-12);
+        assert!((p.theta() - z.theta()).abs() < 1e-12);
+        // The marginal of (across, θ) is the match's; nothing along u.
+        let w = |a: [f64; 3], b: [f64; 3], c: &Matrix3<f64>| {
+            (nalgebra::Vector3::from(a).transpose() * c * nalgebra::Vector3::from(b))[(0, 0)]
+        };
+        let (uu, vv, tt) = ([u.x, u.y, 0.0], [v.x, v.y, 0.0], [0.0, 0.0, 1.0]);
+        assert!((w(uu, uu, &cov) - PARTIAL_SIGMA_M.powi(2)).abs() < 1e-9);
+        assert!(w(uu, vv, &cov).abs() < 1e-12 && w(uu, tt, &cov).abs() < 1e-12);
+        for (a, b) in [(vv, vv), (vv, tt), (tt, tt)] {
+            assert!((w(a, b, &cov) - w(a, b, &m.covariance)).abs() < 1e-12);
+        }
+        assert!(cov.cholesky().is_some());
     }
 }

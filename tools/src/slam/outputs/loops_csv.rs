@@ -19,7 +19,8 @@
 //! | `second_peak_ratio` | best score outside the peak zone / best score (0-1, lower is more distinct) |
 //! | `points` | scan points used |
 //! | `surface_fit_residual` | relative RMS residual of the quadratic fit of the peak |
-//! | `cov_xx` ... `cov_tt` | match covariance (m², m·rad, rad²): xx, xy, xt, yy, yt, tt |
+//! | `cov_xx` ... `cov_tt` | covariance of the loop's measurement (m², m·rad, rad²): xx, xy, xt, yy, yt, tt; the match's, or for a partial loop its marginal across the unconstrained direction with 10 m along it |
+//! | `partial` | `true` for a partial loop (`loops.densify_partial`): constrained across one horizontal direction and in heading only, its component along that direction taken from the estimate |
 //! | `reverse_translation_m`, `reverse_rotation_deg` | disagreement of the symmetric match `S_from` vs `I_to` |
 //! | `robust_weight` | weight of the edge under the robust kernel at the solution |
 //! | `accepted` | `true` when the loop is an edge of the final graph |
@@ -35,7 +36,7 @@ use std::io::Write;
 use std::path::Path;
 
 /// The header of `loops.csv`, in order.
-pub const COLUMNS: [&str; 33] = [
+pub const COLUMNS: [&str; 34] = [
     "from",
     "to",
     "examined_at",
@@ -59,6 +60,7 @@ pub const COLUMNS: [&str; 33] = [
     "cov_yy",
     "cov_yt",
     "cov_tt",
+    "partial",
     "reverse_translation_m",
     "reverse_rotation_deg",
     "robust_weight",
@@ -90,6 +92,8 @@ pub struct LoopRow {
     pub surface_fit_residual: Option<f64>,
     /// `[xx, xy, xt, yy, yt, tt]`.
     pub covariance: Option<[f64; 6]>,
+    /// A partial loop; `None` without a measurement.
+    pub partial: Option<bool>,
     pub reverse_translation_m: Option<f64>,
     pub reverse_rotation_deg: Option<f64>,
     pub robust_weight: Option<f64>,
@@ -137,6 +141,7 @@ impl LoopRow {
                     c[(2, 2)],
                 ]
             }),
+            partial: r.measurement.map(|_| r.unconstrained_direction.is_some()),
             reverse_translation_m: r.reverse.as_ref().and_then(|v| v.translation_diff_m),
             reverse_rotation_deg: r
                 .reverse
@@ -195,6 +200,7 @@ impl LoopRow {
         ]);
         out.extend((0..6).map(|i| f(self.covariance.map(|c| c[i]))));
         out.extend([
+            self.partial.map(|v| v.to_string()).unwrap_or_default(),
             f(self.reverse_translation_m),
             f(self.reverse_rotation_deg),
             f(self.robust_weight),
@@ -371,6 +377,7 @@ impl RowParser<'_> {
             points: self.parse("points", "a count")?,
             surface_fit_residual: self.number("surface_fit_residual")?,
             covariance: has_cov.then_some(cov),
+            partial: self.parse("partial", "true or false")?,
             reverse_translation_m: self.number("reverse_translation_m")?,
             reverse_rotation_deg: self.number("reverse_rotation_deg")?,
             robust_weight: self.number("robust_weight")?,
@@ -419,6 +426,7 @@ mod tests {
             points: Some(337),
             surface_fit_residual: Some(0.03),
             covariance: Some([0.01, 0.0, 0.001, 0.02, 0.0, 0.0004]),
+            partial: Some(false),
             reverse_translation_m: Some(0.04),
             reverse_rotation_deg: Some(0.2),
             robust_weight: Some(1.0),
