@@ -41,8 +41,14 @@ impl DemoSummary {
             self.simulation_s,
             self.mission_path.display()
         )];
+        let partial = self
+            .output
+            .loops
+            .iter()
+            .filter(|l| l.accepted && l.unconstrained_direction.is_some())
+            .count();
         lines.push(format!(
-            "SLAM: {} rotations, {} nodes, {} loop candidates, {} loops accepted; pipeline {:.2} s, outputs {:.2} s",
+            "SLAM: {} rotations, {} nodes, {} loop candidates, {} loops accepted ({partial} of them partial: one wall, constrained across it); pipeline {:.2} s, outputs {:.2} s",
             r.rotations, r.nodes, r.loop_candidates, r.loops_accepted, self.pipeline_s, self.writing_s
         ));
         if let (Some(ate), Some(dr)) = (r.ate_rmse_m, r.ate_rmse_dead_reckoning_m) {
