@@ -156,6 +156,8 @@ pub const ROBUST_WEIGHT_REJECTED: f64 = 0.1;
 pub struct ReverseCheck {
     /// The matched `k_from_j`, when the matcher found one.
     pub matched: Option<Se2>,
+    /// Its quality, evaluated on the raster
+    /// ([`QualityModel::Raster`](echofield_frontend::matcher::QualityModel::Raster)).
     pub quality: Option<MatchQuality>,
     /// `|t|` and `|θ|` of `forward ⊕ reverse`, which is the identity when
     /// both matches agree; `None` without a reverse match.

@@ -9,9 +9,9 @@
 //! from 0.29 m to 0.22 m RMS).
 //!
 //! Loop closures run the reverse match as a climb to the nearest maximum
-//! ([`match_scan_local`]), sequential matches as a search of the window
-//! ([`match_scan`]). Over ten simulated missions (marina seeds 1-6, St Pere
-//! 1-3, canyon) the climb accepts the same loops to within a few (St Pere
+//! ([`Search::Local`]), sequential matches as a search of the window
+//! ([`Search::Global`]). Over ten simulated missions (marina seeds 1-6, St
+//! Pere 1-3, canyon) the climb accepts the same loops to within a few (St Pere
 //! seed 1: 473 against 472, 465 true positives either way), moves the ATE
 //! by at most 0.017 m in either direction, and costs a third of the
 //! search: 4.8% fewer instructions over a St Pere run. For the sequential
@@ -21,7 +21,9 @@
 use super::result::ReverseCheck;
 use echofield_frontend::FrontendError;
 use echofield_frontend::image::AcousticImage;
-use echofield_frontend::matcher::{MatcherConfig, SearchWindow, match_scan, match_scan_local};
+use echofield_frontend::matcher::{
+    MatcherConfig, QualityModel, Search, SearchWindow, match_scan_with,
+};
 use echofield_graph::{Se2, wrap_angle};
 use nalgebra::Point2;
 
@@ -37,7 +39,7 @@ pub struct Tolerance {
 /// `forward⁻¹` and compares. Returns the check and, when both agree within
 /// the tolerance, the combined measurement of `j_from_k`. `local` climbs
 /// to the nearest maximum instead of searching the window
-/// ([`match_scan_local`]).
+/// ([`Search::Local`]).
 pub fn reverse_match(
     forward: &Se2,
     old_scan: &[Point2<f64>],
@@ -46,13 +48,17 @@ pub fn reverse_match(
     matcher: &MatcherConfig,
     local: bool,
 ) -> Result<(ReverseCheck, Option<Se2>), FrontendError> {
-    let search = if local { match_scan_local } else { match_scan };
-    let outcome = search(
+    let search = if local { Search::Local } else { Search::Global };
+    // Only the pose of the reverse match is compared: its quality, which
+    // no gate reads, is taken on the raster.
+    let outcome = match_scan_with(
         old_scan,
         new_image,
         &forward.inverse(),
         &tolerance.window,
         matcher,
+        search,
+        QualityModel::Raster,
     )?;
     let Some(r) = outcome.matched() else {
         let check = ReverseCheck {
