@@ -468,6 +468,56 @@ mod tests {
     }
 
     #[test]
+    fn raster_quality_changes_only_the_quality() {
+        let scene = SceneConfig::default();
+        let a = static_rotation(&scene, 12);
+        let image = image_of(&a);
+        let config = MatcherConfig {
+            refine_iterations: 0,
+            second_peak: false,
+            ..MatcherConfig::default()
+        };
+        let mut rng = ChaCha8Rng::seed_from_u64(23);
+        for trial in 0..4 {
+            let (b, truth) = offset_rotation(&scene, &a, &mut rng, 300 + trial);
+            let window = SearchWindow::new(0.5, 0.5, 3.0_f64.to_radians());
+            for search in [Search::Global, Search::Local] {
+                let run = |quality| {
+                    match_scan_with(
+                        &b.wall_points,
+                        &image,
+                        &truth,
+                        &window,
+                        &config,
+                        search,
+                        quality,
+                    )
+                    .unwrap()
+                    .matched()
+                    .unwrap()
+                    .clone()
+                };
+                let (samples, raster) = (run(QualityModel::Samples), run(QualityModel::Raster));
+                assert_eq!(samples.image_from_scan, raster.image_from_scan);
+                assert_eq!(samples.covariance, raster.covariance);
+                let n = b.wall_points.len() as f64;
+                let expected = raster_score(&b.wall_points, &image, &raster.image_from_scan) / n;
+                assert!((raster.quality.mean_intensity - expected).abs() < 1e-12);
+                let fine = mean_score(&b.wall_points, &image, &samples.image_from_scan);
+                assert!((samples.quality.mean_intensity - fine).abs() < 1e-12);
+                // On a right match both models see the wall under the points.
+                assert!(samples.quality.mean_intensity > 0.3, "trial {trial}");
+                assert!(
+                    raster.quality.mean_intensity > 0.5 * samples.quality.mean_intensity,
+                    "trial {trial}: {} vs {}",
+                    raster.quality.mean_intensity,
+                    samples.quality.mean_intensity
+                );
+            }
+        }
+    }
+
+    #[test]
     fn a_single_wall_leaves_the_along_wall_direction_uncertain() {
         let scene = SceneConfig {
             walls: vec![Wall::new(-30.0, 6.0, 30.0, 6.0, 1.0)],
