@@ -102,10 +102,10 @@ fn marina_mission_is_five_times_better_than_dead_reckoning() {
     assert!((report.ate_rmse_m.unwrap() - slam).abs() < 1e-6);
 
     // Loops: many, nearly all within the true-positive tolerances (0.5 m,
-    // 3 deg), none grossly wrong. Measured on seed 1: ATE 0.494 m (dead
-    // reckoning 2.816 m, 5.7x), precision 0.994 (four loops 0.50-0.68 m
-    // off), recall 0.745 of the overlapping node pairs and 0.946 of the
-    // revisits. 194 of the 668 loops are partial (`densify_partial`): they
+    // 3 deg), none grossly wrong. Measured on seed 1: ATE 0.488 m (dead
+    // reckoning 2.816 m, 5.8x), precision 0.994 (four loops 0.50-0.67 m
+    // off), recall 0.739 of the overlapping node pairs and 0.946 of the
+    // revisits. 190 of the 661 loops are partial (`densify_partial`): they
     // see one quay along its length, and every one of them is right across
     // the quay (within 0.5 m) and in heading; without them recall was
     // 0.512 (with `reverse_max_translation_m` 0.5).

@@ -34,10 +34,10 @@ use super::SlamError;
 use super::config::{SlamConfig, Window};
 use super::nodes::NodeData;
 use super::result::{RejectReason, SequentialRecord};
-use super::symmetric::{Tolerance, reverse_match};
+use super::symmetric::{Fusion, Tolerance, reverse_match};
 use super::uncertainty::{information, mahalanobis2, symmetric, with_floor};
 use echofield_frontend::dead_reckoning::Navigation;
-use echofield_frontend::matcher::{MatchOutcome, SearchWindow, match_scan};
+use echofield_frontend::matcher::{MatchOutcome, Search, SearchWindow, match_scan};
 use echofield_graph::Se2;
 use nalgebra::Matrix3;
 use rayon::prelude::*;
@@ -153,12 +153,13 @@ fn match_one(
             max_rotation_rad: seq.reverse_max_rotation_rad,
         };
         let (reverse, measurement) = reverse_match(
-            &m.image_from_scan,
+            &m,
             &prev.scan.points,
             &node.image,
             &tolerance,
             &config.matcher,
-            false,
+            Search::Global,
+            Fusion::InformationWeighted,
         )
         .map_err(|e| {
             SlamError::frontend(format!("reverse sequential match {k} -> {}", k - 1), e)

@@ -26,10 +26,10 @@ use crate::slam::SlamError;
 use crate::slam::config::Window;
 use crate::slam::nodes::NodeData;
 use crate::slam::result::{LoopRecord, RejectReason};
-use crate::slam::symmetric::{Tolerance, reverse_match};
+use crate::slam::symmetric::{Fusion, Tolerance, reverse_match};
 use crate::slam::uncertainty::symmetric;
 use echofield_frontend::matcher::{
-    MatchOutcome, MatchResult, MatcherConfig, SearchWindow, match_scan, match_scan_local,
+    MatchOutcome, MatchResult, MatcherConfig, Search, SearchWindow, match_scan, match_scan_local,
 };
 use echofield_graph::Se2;
 use nalgebra::{Matrix2, Matrix3, Vector2};
@@ -188,12 +188,13 @@ pub fn examine(
         max_rotation_rad: config.reverse_max_rotation_rad,
     };
     let (reverse, measurement) = reverse_match(
-        &m.image_from_scan,
+        &m,
         &old.scan.points,
         &new.image,
         &tolerance,
         matcher,
-        true,
+        Search::Local,
+        Fusion::Midpoint,
     )
     .map_err(|e| SlamError::frontend(format!("reverse {}", stage()), e))?;
     record.reverse = Some(reverse);
