@@ -94,9 +94,10 @@ pub struct SequentialRecord {
     pub window: SearchWindow,
     /// The matched `from_from_to`, when the matcher found one.
     pub matched: Option<Se2>,
-    /// The relative pose of the sequential edge: the mean of `matched` and
-    /// the inverse of the reverse match (`S_from` vs `I_to`) when they
-    /// agree, else `matched`.
+    /// The relative pose of the sequential edge: the information-weighted
+    /// mean ([`Fusion::InformationWeighted`](crate::slam::symmetric::Fusion))
+    /// of `matched` and the inverse of the reverse match (`S_from` vs
+    /// `I_to`) when they agree, else `matched`.
     pub measurement: Option<Se2>,
     pub quality: Option<MatchQuality>,
     pub covariance: Option<Matrix3<f64>>,
