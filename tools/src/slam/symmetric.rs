@@ -38,13 +38,15 @@ use nalgebra::{Matrix3, Point2};
 /// Measured over St Pere seeds 1-3 and marina seeds 1-6 (ATE, m), with
 /// the midpoint for loops: sequential matches by the midpoint 0.203 /
 /// 0.232 / 0.204 and a marina mean of 0.472; information-weighted 0.197 /
-/// 0.211 / 0.188 and 0.467, precision and recall within ±0.005. Weighting
-/// the loops too made the marina worse (mean 0.493, seed 4 0.388 -> 0.465
-/// m; precision of seed 5 0.986 -> 0.973): a loop's two matches look at
-/// the walls from far-apart places, their viewpoint biases differ in sign
-/// and the midpoint cancels them, while the weights lean on one side. The
-/// two rotations of a sequential match are a few metres apart, see the
-/// walls from nearly the same place and share most of that bias.
+/// 0.211 / 0.188 and 0.467, precision and recall within ±0.006 (canyon
+/// 0.152 -> 0.150). Weighting the loops too made the marina worse (mean
+/// 0.493, seed 4 0.388 -> 0.465 m; precision of seed 5 0.986 -> 0.973).
+/// Our reading, not measured separately: a loop's two matches look at the
+/// walls from far-apart places, their viewpoint biases differ in sign and
+/// the midpoint cancels them, while the weights lean on one side; the two
+/// rotations of a sequential match, a few metres apart, see the walls from
+/// nearly the same place and share most of that bias, so weighting by
+/// precision loses little there.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Fusion {
     /// [`mean_pose`]: the midpoint.
