@@ -352,6 +352,16 @@ mod tests {
         (b, truth)
     }
 
+    /// The matcher as the SLAM pipeline configures it: no Nelder-Mead
+    /// refinement, no second-peak search.
+    fn pipeline_matcher() -> MatcherConfig {
+        MatcherConfig {
+            refine_iterations: 0,
+            second_peak: false,
+            ..MatcherConfig::default()
+        }
+    }
+
     fn pose_error(a: &Se2, b: &Se2) -> (f64, f64) {
         let d = a.between(b);
         (d.translation().norm(), d.theta().abs())
@@ -434,11 +444,7 @@ mod tests {
         let scene = SceneConfig::default();
         let a = static_rotation(&scene, 11);
         let image = image_of(&a);
-        let config = MatcherConfig {
-            refine_iterations: 0,
-            second_peak: false,
-            ..MatcherConfig::default()
-        };
+        let config = pipeline_matcher();
         let mut rng = ChaCha8Rng::seed_from_u64(22);
         for trial in 0..8 {
             let (b, truth) = offset_rotation(&scene, &a, &mut rng, 200 + trial);
@@ -472,11 +478,7 @@ mod tests {
         let scene = SceneConfig::default();
         let a = static_rotation(&scene, 12);
         let image = image_of(&a);
-        let config = MatcherConfig {
-            refine_iterations: 0,
-            second_peak: false,
-            ..MatcherConfig::default()
-        };
+        let config = pipeline_matcher();
         let mut rng = ChaCha8Rng::seed_from_u64(23);
         for trial in 0..4 {
             let (b, truth) = offset_rotation(&scene, &a, &mut rng, 300 + trial);
