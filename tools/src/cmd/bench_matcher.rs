@@ -42,6 +42,11 @@ deviations below 0.3 m and 2 degrees) with their success rate, and how
 many of the matcher's failures put the scan where the mean score of eq. (5)
 is at least as high as at the true pose (an ambiguity of the score, e.g.
 along a quay, that no search can resolve; the rest are search failures).
+The last column is the mean signed error of the successes with its
+standard error: along the true displacement (negative: the matches are
+short), in heading, and as a scale (the slope of the along-track error
+over the distance). The pose graph averages random errors away but not
+these; with --navigation ground-truth they are the matcher's own.
 
 --navigation ground-truth compensates the vehicle's motion within each
 rotation with the ground truth instead of dead reckoning: the scans and

@@ -36,6 +36,14 @@
 //! scans and images built with the mission's navigation (dead reckoning or
 //! ground truth). A trial succeeds when the final error is below
 //! `success_m` and `success_rad`.
+//!
+//! **Bias.** Random errors average out in the pose graph; a systematic
+//! one does not: a consecutive match that is short by a fixed fraction of
+//! the displacement shrinks the map by that fraction, and a heading error
+//! of one sign bends it. [`Evaluation::bias`] gives the mean signed error
+//! of the successes with its standard error: along the true displacement
+//! (negative: the match is short), and in heading. Use it with
+//! `--navigation ground-truth`, so that motion compensation adds nothing.
 
 use super::{MatchingConfig, MissionRotations};
 use anyhow::Result;
@@ -157,6 +165,25 @@ pub struct Trial {
     /// The matcher's best lattice pose before refinement (acoustic image
     /// only).
     pub coarse_estimate: Option<[f64; 3]>,
+}
+
+/// Mean signed error of a method's successes on one kind of pair, with
+/// the standard errors of the means (module doc, **Bias**).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Bias {
+    /// Successes averaged.
+    pub trials: usize,
+    /// Error along the unit vector of the true translation, metres
+    /// (negative: the estimate is short); successes whose true
+    /// translation is under 0.1 m are left out of this one.
+    pub along_m: f64,
+    pub along_standard_error_m: f64,
+    /// Heading error, rad.
+    pub heading_rad: f64,
+    pub heading_standard_error_rad: f64,
+    /// Least-squares slope of the along-track error over the true distance:
+    /// the scale error of the estimated displacements (-0.005: 0.5% short).
+    pub scale: f64,
 }
 
 /// Everything measured.
@@ -479,9 +506,12 @@ impl Evaluation {
         let min_c = self.config.min_constraint;
         let _ = writeln!(
             out,
-            "| pairs | method | trials | success | constrained pairs (≥ {min_c}) | init <1 m | init 1-3 m | init 3-{max:.0} m | median error (succ.) | mean time | mean NEES (succ.) | confident: share, success | failures scoring ≥ truth |"
+            "| pairs | method | trials | success | constrained pairs (≥ {min_c}) | init <1 m | init 1-3 m | init 3-{max:.0} m | median error (succ.) | mean time | mean NEES (succ.) | confident: share, success | failures scoring ≥ truth | bias (succ.): along, heading, scale |"
         );
-        let _ = writeln!(out, "|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+        let _ = writeln!(
+            out,
+            "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+        );
         for kind in [PairKind::Consecutive, PairKind::NonConsecutive] {
             for method in [Method::AcousticImage, Method::Icp] {
                 let trials: Vec<&Trial> = self
@@ -572,9 +602,20 @@ impl Evaluation {
                     .copied()
                     .filter(|t| t.constraint >= min_c)
                     .collect();
+                let bias = match self.bias(kind, method) {
+                    Some(b) => format!(
+                        "{:+.3} ± {:.3} m, {:+.3} ± {:.3}°, {:+.2}%",
+                        b.along_m,
+                        b.along_standard_error_m,
+                        b.heading_rad.to_degrees(),
+                        b.heading_standard_error_rad.to_degrees(),
+                        100.0 * b.scale
+                    ),
+                    None => "-".into(),
+                };
                 let _ = writeln!(
                     out,
-                    "| {kind:?} | {method:?} | {} | {} | {} | {} | {} | {} | {median_error} | {mean_ms:.2} ms | {mean_nees} | {confident} | {ambiguous} |",
+                    "| {kind:?} | {method:?} | {} | {} | {} | {} | {} | {} | {median_error} | {mean_ms:.2} ms | {mean_nees} | {confident} | {ambiguous} | {bias} |",
                     trials.len(),
                     rate(&trials),
                     rate(&constrained),
@@ -585,6 +626,42 @@ impl Evaluation {
             }
         }
         out
+    }
+
+    /// The mean signed error of `method`'s successes on `kind` pairs
+    /// (module doc, **Bias**); `None` with fewer than two successes.
+    pub fn bias(&self, kind: PairKind, method: Method) -> Option<Bias> {
+        // (along-track error, true distance, heading error) per success.
+        let errors: Vec<(Option<(f64, f64)>, f64)> = self
+            .trials
+            .iter()
+            .filter(|t| t.kind == kind && t.method == method && t.success)
+            .filter_map(|t| {
+                let estimate = t.estimate?;
+                let truth = Vector2::new(t.truth[0], t.truth[1]);
+                let error = Vector2::new(estimate[0] - t.truth[0], estimate[1] - t.truth[1]);
+                let distance = truth.norm();
+                let along = (distance >= 0.1).then(|| (error.dot(&truth) / distance, distance));
+                Some((along, wrap_angle(estimate[2] - t.truth[2])))
+            })
+            .collect();
+        let along: Vec<(f64, f64)> = errors.iter().filter_map(|e| e.0).collect();
+        let heading: Vec<f64> = errors.iter().map(|e| e.1).collect();
+        if heading.len() < 2 || along.len() < 2 {
+            return None;
+        }
+        let (along_m, along_se) = mean_and_standard_error(along.iter().map(|a| a.0));
+        let (heading_rad, heading_se) = mean_and_standard_error(heading.iter().copied());
+        let scale = along.iter().map(|(e, d)| e * d).sum::<f64>()
+            / along.iter().map(|(_, d)| d * d).sum::<f64>();
+        Some(Bias {
+            trials: heading.len(),
+            along_m,
+            along_standard_error_m: along_se,
+            heading_rad,
+            heading_standard_error_rad: heading_se,
+            scale,
+        })
     }
 
     /// Success rate of one method over all pairs, 0-1.
@@ -605,6 +682,15 @@ impl Evaluation {
         }
         trials.iter().filter(|t| t.success).count() as f64 / trials.len() as f64
     }
+}
+
+/// Mean and standard error of the mean (sample standard deviation / √n)
+/// of at least two values.
+fn mean_and_standard_error(values: impl Iterator<Item = f64> + Clone) -> (f64, f64) {
+    let n = values.clone().count() as f64;
+    let mean = values.clone().sum::<f64>() / n;
+    let variance = values.map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    (mean, (variance / n).sqrt())
 }
 
 fn median(values: &mut [f64]) -> Option<f64> {
@@ -634,6 +720,97 @@ mod tests {
         }
         // The draws reach close to the bounds.
         assert!(largest.0 > 4.8 && largest.1 > 19.0_f64.to_radians());
+    }
+
+    /// A trial with the given truth and estimate `[x, y, θ]`.
+    fn trial(method: Method, success: bool, truth: [f64; 3], estimate: [f64; 3]) -> Trial {
+        Trial {
+            scan: 1,
+            image: 0,
+            kind: PairKind::Consecutive,
+            constraint: 0.3,
+            method,
+            initial_error_m: 1.0,
+            initial_error_rad: 0.1,
+            final_error_m: None,
+            final_error_rad: None,
+            success,
+            time_s: 0.0,
+            nees: None,
+            confident: None,
+            mean_score: None,
+            mean_score_at_truth: None,
+            second_peak_ratio: None,
+            truth,
+            estimate: Some(estimate),
+            coarse_estimate: None,
+        }
+    }
+
+    #[test]
+    fn bias_averages_the_signed_errors_of_the_successes() {
+        // Three successes 1% short along their displacements of 2, 4 and 6 m
+        // (in three directions), each also 5 cm off across it, with heading
+        // errors of 1, 3 and 2 mrad.
+        let (c, s) = (0.6, 0.8);
+        let trials = vec![
+            trial(
+                Method::AcousticImage,
+                true,
+                [2.0, 0.0, 0.5],
+                [1.98, 0.05, 0.501],
+            ),
+            trial(
+                Method::AcousticImage,
+                true,
+                [0.0, -4.0, -3.1],
+                [-0.05, -3.96, -3.097],
+            ),
+            trial(
+                Method::AcousticImage,
+                true,
+                [6.0 * c, 6.0 * s, 3.14],
+                [
+                    5.94 * c - 0.05 * s,
+                    5.94 * s + 0.05 * c,
+                    3.142 - std::f64::consts::TAU,
+                ],
+            ),
+            // Neither a failure nor another method counts.
+            trial(
+                Method::AcousticImage,
+                false,
+                [2.0, 0.0, 0.0],
+                [5.0, 3.0, 1.0],
+            ),
+            trial(Method::Icp, true, [2.0, 0.0, 0.0], [2.2, 0.0, 0.1]),
+        ];
+        let evaluation = Evaluation {
+            config: EvaluationConfig::default(),
+            rotations: 2,
+            rotations_without_scan: 0,
+            pairs: BTreeMap::new(),
+            overlapping_pairs: BTreeMap::new(),
+            chosen_pairs: Vec::new(),
+            trials,
+        };
+        let bias = evaluation
+            .bias(PairKind::Consecutive, Method::AcousticImage)
+            .unwrap();
+        assert_eq!(bias.trials, 3);
+        assert!((bias.along_m + 0.04).abs() < 1e-9, "{bias:?}");
+        // Along errors -0.02, -0.04, -0.06: sample deviation 0.02, over √3.
+        assert!((bias.along_standard_error_m - 0.02 / 3f64.sqrt()).abs() < 1e-9);
+        assert!((bias.heading_rad - 0.002).abs() < 1e-9, "{bias:?}");
+        assert!((bias.heading_standard_error_rad - 0.001 / 3f64.sqrt()).abs() < 1e-9);
+        assert!((bias.scale + 0.01).abs() < 1e-9, "{bias:?}");
+        assert!(
+            evaluation
+                .table()
+                .contains("-0.040 ± 0.012 m, +0.115 ± 0.033°, -1.00%")
+        );
+        // One success is not enough for a standard error.
+        assert_eq!(evaluation.bias(PairKind::Consecutive, Method::Icp), None);
     }
 
     #[test]
