@@ -37,6 +37,7 @@ pub use polar::PolarSamples;
 pub use pyramid::Pyramid;
 
 use crate::error::FrontendError;
+use crate::off_axis::OffAxisSuppression;
 use crate::sensors::SonarBeam;
 use echofield_graph::Se2;
 use nalgebra::Vector2;
@@ -100,6 +101,11 @@ pub struct ImageConfig {
     /// Number of max-pooled pyramid levels above the raster for the coarse
     /// search; level `h` bounds translations of `2^h` cells.
     pub pyramid_levels: usize,
+    /// Clears the bins that a neighbouring beam hears much louder at about
+    /// the same range ([`crate::off_axis`]), before the background is
+    /// subtracted. Default on, margin 25 (above the scan's 15, so that the
+    /// returns the scan keeps stay in the image).
+    pub off_axis: OffAxisSuppression,
 }
 
 impl Default for ImageConfig {
@@ -117,6 +123,7 @@ impl Default for ImageConfig {
             intensity_exponent: 1.0,
             smoothing_sigma_m: 0.0,
             pyramid_levels: 7,
+            off_axis: OffAxisSuppression::for_images(),
         }
     }
 }
@@ -189,6 +196,7 @@ impl ImageConfig {
                 format!("must be finite and >= 0, got {}", self.smoothing_sigma_m),
             ));
         }
+        self.off_axis.validate()?;
         if self.pyramid_levels > 12 {
             return Err(FrontendError::config(
                 "pyramid_levels",

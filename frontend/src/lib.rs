@@ -10,6 +10,7 @@ pub mod icp;
 pub mod image;
 pub mod matcher;
 pub mod motion;
+pub mod off_axis;
 pub mod rotation;
 pub mod scan;
 pub mod segmentation;

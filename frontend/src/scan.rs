@@ -31,6 +31,7 @@
 //! ```
 
 use crate::error::FrontendError;
+use crate::off_axis::{Echo, keep_returns};
 use crate::segmentation::{RangeReturn, SegmentationConfig, extract_ranges_into};
 use crate::sensors::SonarBeam;
 use echofield_graph::Se2;
@@ -99,7 +100,9 @@ impl Scan {
 /// `reference_stamp_s`): each return `r` of beam `j` becomes the point
 /// `reference_from_beams[j] · (r.range_m + Δr, 0)`, `Δr` the beam-width
 /// correction of `config.beam_width` ([`beam_width`]; 0 when it is off),
-/// kept in [`Scan::range_corrections_m`].
+/// kept in [`Scan::range_corrections_m`]. Returns that a neighbouring beam
+/// hears much louder are dropped first (`config.off_axis`, see
+/// [`crate::off_axis`]).
 ///
 /// Errors: invalid config; slices of different lengths; a beam with a
 /// non-finite or non-positive bin size or a non-finite first-bin range, or
@@ -131,17 +134,25 @@ pub fn build_scan(
         ..Scan::empty(reference_stamp_s)
     };
     let (mut smoothed, mut returns): (Vec<f32>, Vec<RangeReturn>) = (Vec::new(), Vec::new());
+    let mut echoes = Vec::new();
     for (j, (beam, frame)) in beams.iter().zip(reference_from_beams).enumerate() {
         check_beam(j, beam, frame)?;
         returns.clear();
         extract_ranges_into(beam, config, &mut smoothed, &mut returns);
-        for r in &returns {
-            // Eq. (3) in the frame of eq. (4).
-            let (x, y) = frame.transform_xy(r.range_m, 0.0);
-            scan.points.push(Point2::new(x, y));
-            scan.intensities.push(r.intensity);
-            scan.beam_indices.push(j as u32);
-        }
+        echoes.extend(returns.iter().map(|r| Echo {
+            beam: j,
+            range_m: r.range_m,
+            intensity: f64::from(r.intensity),
+        }));
+    }
+    let angles: Vec<f64> = beams.iter().map(|b| b.angle_rad).collect();
+    let keep = keep_returns(&echoes, &angles, &config.off_axis);
+    for (echo, _) in echoes.iter().zip(&keep).filter(|(_, k)| **k) {
+        // Eq. (3) in the frame of eq. (4).
+        let (x, y) = reference_from_beams[echo.beam].transform_xy(echo.range_m, 0.0);
+        scan.points.push(Point2::new(x, y));
+        scan.intensities.push(echo.intensity as f32);
+        scan.beam_indices.push(echo.beam as u32);
     }
     if config.beam_width.enabled {
         scan.range_corrections_m = beam_width::corrections(

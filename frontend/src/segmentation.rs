@@ -34,6 +34,7 @@
 //! scan and an image built from the same beams agree exactly.
 
 use crate::error::FrontendError;
+use crate::off_axis::OffAxisSuppression;
 use crate::scan::beam_width::BeamWidthCorrection;
 use crate::sensors::SonarBeam;
 use serde::{Deserialize, Serialize};
@@ -87,6 +88,10 @@ pub struct SegmentationConfig {
     /// The correction `build_scan` applies to the ranges for the width of
     /// the beam ([`crate::scan::beam_width`]); on by default.
     pub beam_width: BeamWidthCorrection,
+    /// `build_scan` drops the returns that a neighbouring beam hears much
+    /// louder at about the same range ([`crate::off_axis`]). Default on,
+    /// margin 15.
+    pub off_axis: OffAxisSuppression,
 }
 
 impl Default for SegmentationConfig {
@@ -103,6 +108,7 @@ impl Default for SegmentationConfig {
             smoothing_bins: 3,
             min_scan_points: 10,
             beam_width: BeamWidthCorrection::default(),
+            off_axis: OffAxisSuppression::for_scans(),
         }
     }
 }
@@ -161,7 +167,8 @@ impl SegmentationConfig {
                 "must be >= 1 (1 = no smoothing)",
             ));
         }
-        self.beam_width.validate()
+        self.beam_width.validate()?;
+        self.off_axis.validate()
     }
 }
 

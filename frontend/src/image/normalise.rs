@@ -5,7 +5,9 @@
 //!    (fewer at the beam's ends; the segmentation's, see
 //!    `segmentation::smooth`), rounded, when that is more than 1;
 //! 1. `z = 0` where the bin's far end is inside the blind zone; bins beyond
-//!    `max_range_m` are dropped;
+//!    `max_range_m` are dropped; `z = 0` too where a neighbouring beam
+//!    hears much louder at about the same range (`off_axis`, see
+//!    [`crate::off_axis`]);
 //! 2. `d = max(0, z - b(i))` with `b(i)` the `background_quantile` of
 //!    `z_·(i)` over the rotation's beams (0 when that quantile is 0):
 //!    echoes that sit at the same range in most beams (ringing, the noise
@@ -20,6 +22,7 @@
 
 use super::ImageConfig;
 use super::grid::floor;
+use crate::off_axis::suppress_bins;
 use crate::segmentation::smooth;
 use crate::sensors::SonarBeam;
 
@@ -90,6 +93,16 @@ pub fn normalise_beams(beams: &[SonarBeam], config: &ImageConfig) -> Profiles {
         let masked = first_unmasked_bin(beam, config.blind_zone_m).min(n);
         raw[start..start + masked].fill(0);
         offsets.push(raw.len());
+    }
+    // Step 1b: echoes a neighbouring beam hears much louder go.
+    if let Some(first) = beams.first() {
+        suppress_bins(
+            &mut raw,
+            &offsets,
+            beams,
+            first.bin_size_m,
+            &config.off_axis,
+        );
     }
     let lengths: Vec<usize> = offsets.windows(2).map(|w| w[1] - w[0]).collect();
 
@@ -172,6 +185,7 @@ fn histogram_quantile(hist: &[u32; 256], count: u32, q: f64) -> u8 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::off_axis::OffAxisSuppression;
 
     fn beam(intensities: Vec<u8>) -> SonarBeam {
         SonarBeam {
@@ -210,6 +224,8 @@ mod tests {
             background_quantile: 0.5,
             normalisation_quantile: 1.0,
             max_range_m: Some(2.0), // keeps bins 0-3
+            // The three beams share one angle (neighbours by the rule).
+            off_axis: OffAxisSuppression::off(),
             ..ImageConfig::default()
         };
         let p = normalise_beams(&beams, &config);

@@ -50,6 +50,7 @@ use anyhow::Result;
 use echofield_frontend::icp::{IcpConfig, icp, kdtree::KdTree};
 use echofield_frontend::matcher::{MatchOutcome, SearchWindow, match_scan, mean_score};
 use echofield_frontend::motion::reference_from_beams;
+use echofield_frontend::off_axis::OffAxisSuppression;
 use echofield_frontend::scan::beam_width::BeamWidthCorrection;
 use echofield_frontend::scan::{Scan, build_scan};
 use echofield_frontend::segmentation::SegmentationConfig;
@@ -334,12 +335,14 @@ pub fn evaluate(
 }
 
 /// Scans built with the ground truth as navigation (exact motion
-/// compensation) and without the beam-width correction, for choosing pairs
-/// independently of the navigation and of the range correction evaluated.
+/// compensation), without the beam-width correction and without the
+/// off-axis suppression, for choosing pairs independently of the navigation
+/// and of the scan building evaluated.
 fn exact_scans(mission: &MissionRotations, config: &MatchingConfig) -> Result<Vec<Option<Scan>>> {
     let truth = super::navigation_eval::ground_truth_navigation(&mission.mission)?;
     let segmentation = SegmentationConfig {
         beam_width: BeamWidthCorrection::off(),
+        off_axis: OffAxisSuppression::off(),
         ..config.segmentation.clone()
     };
     Ok(mission

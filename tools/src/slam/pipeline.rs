@@ -350,8 +350,11 @@ fn add_node(
     // while chained matches let the heading random-walk.
     let pose = estimate.poses()[k - 1].compose(&odometry);
     estimate.add_node(node.stamp_s, pose);
-    let sigma = config.backend.heading_prior_sigma_rad;
-    if sigma > 0.0 {
+    let dt_s = node.stamp_s - nodes[k - 1].stamp_s;
+    if let Some(sigma) = config
+        .backend
+        .heading_prior_sigma(&config.dead_reckoning, dt_s)
+    {
         estimate.add_heading_prior(k, node.dead_reckoning, sigma)?;
     }
     estimate.add_chain_edge(EdgeKind::Odometry, k - 1, k, odometry, &odometry_cov, None)?;
