@@ -199,8 +199,10 @@ pub fn suppress_bins(
         let (start, end) = (offsets[j], offsets[j + 1]);
         window_max(&values[start..end], reach, &mut dilated[start..end]);
     }
-    let margin = config.margin.round() as u16;
-    let original = values.to_vec();
+    let margin = config.margin.round().clamp(0.0, 255.0) as u8;
+    // In place: a bin cleared by one neighbour compares as 0 with the
+    // next, which can only clear it again, and the neighbours' maxima were
+    // taken before anything was cleared.
     for j in 0..beams.len() {
         let neighbours = |step: isize| {
             (1..)
@@ -214,14 +216,10 @@ pub fn suppress_bins(
         };
         for k in neighbours(-1).chain(neighbours(1)) {
             let n = (offsets[j + 1] - offsets[j]).min(offsets[k + 1] - offsets[k]);
-            let own = &original[offsets[j]..offsets[j] + n];
             let theirs = &dilated[offsets[k]..offsets[k] + n];
-            for ((v, &o), &t) in values[offsets[j]..offsets[j] + n]
-                .iter_mut()
-                .zip(own)
-                .zip(theirs)
-            {
-                if u16::from(o) + margin < u16::from(t) {
+            for (v, &t) in values[offsets[j]..offsets[j] + n].iter_mut().zip(theirs) {
+                // t > v + margin, without overflow.
+                if t.saturating_sub(margin) > *v {
                     *v = 0;
                 }
             }
@@ -229,12 +227,18 @@ pub fn suppress_bins(
     }
 }
 
-/// `out[i] = max(values[i - reach ..= i + reach])` (clipped at the ends).
+/// `out[i] = max(values[i - reach ..= i + reach])` (clipped at the ends),
+/// one shifted pass per offset so that the loops vectorise.
 fn window_max(values: &[u8], reach: usize, out: &mut [u8]) {
-    for (i, o) in out.iter_mut().enumerate() {
-        let lo = i.saturating_sub(reach);
-        let hi = (i + reach + 1).min(values.len());
-        *o = values[lo..hi].iter().copied().max().unwrap_or(0);
+    let n = values.len();
+    out.copy_from_slice(values);
+    for s in 1..=reach.min(n.saturating_sub(1)) {
+        for (o, &v) in out[..n - s].iter_mut().zip(&values[s..]) {
+            *o = (*o).max(v);
+        }
+        for (o, &v) in out[s..].iter_mut().zip(&values[..n - s]) {
+            *o = (*o).max(v);
+        }
     }
 }
 
