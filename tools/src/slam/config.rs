@@ -518,3 +518,48 @@ impl EvaluationConfig {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn heading_priors_follow_the_dead_reckonings_wandering_heading_error() {
+        let backend = BackendConfig::default();
+        let dr = DeadReckoningConfig::default();
+        // 2°, 120 s, 13.6 s apart: phi = exp(-0.11333) = 0.89285,
+        // (1 + phi) / (1 - phi) = 17.666, so 2° x 4.2031 = 8.406°.
+        let sigma = backend.heading_prior_sigma(&dr, 13.6).unwrap();
+        assert!((sigma.to_degrees() - 8.406).abs() < 0.005, "{sigma}");
+        // Nodes farther apart share less of the error: stronger priors,
+        // tending to 2° (the error's own deviation) for independent nodes.
+        let far = backend.heading_prior_sigma(&dr, 600.0).unwrap();
+        assert!(
+            far < sigma && (far.to_degrees() - 2.0).abs() < 0.05,
+            "{far}"
+        );
+        // Two nodes at one instant: no information, capped at π.
+        let same = backend.heading_prior_sigma(&dr, 0.0).unwrap();
+        assert_eq!(same, std::f64::consts::PI);
+        // Without a wandering error: the white heading noise.
+        let white = DeadReckoningConfig {
+            heading_bias_sigma_rad: 0.0,
+            ..DeadReckoningConfig::default()
+        };
+        assert_eq!(
+            backend.heading_prior_sigma(&white, 13.6),
+            Some(white.heading_noise_rad)
+        );
+        // A fixed value wins; 0 means no priors.
+        let fixed = BackendConfig {
+            heading_prior_sigma_rad: Some(0.05),
+            ..BackendConfig::default()
+        };
+        assert_eq!(fixed.heading_prior_sigma(&dr, 13.6), Some(0.05));
+        let none = BackendConfig {
+            heading_prior_sigma_rad: Some(0.0),
+            ..BackendConfig::default()
+        };
+        assert_eq!(none.heading_prior_sigma(&dr, 13.6), None);
+    }
+}
