@@ -30,6 +30,10 @@ Examples:
       --scan 1 --image 0 --prior 0.5,-0.3,5 --window 2,2,15 --config miniking.toml \\
       --json miniking.json
 
+For the bundled Ping360 log (high gain, saturated walls) set
+[segmentation.off_axis] and [image.off_axis] enabled = false: their
+margins are for heads that show decibels.
+
 MISSION is an echofield MCAP file, a St Pere log folder, a Ping360 .bin
 log or a MiniKing .bag. Rotations are numbered from 0 in time order.
 Without --prior the prior is the dead-reckoning motion between the two
