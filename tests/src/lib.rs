@@ -1,6 +1,9 @@
 //! End-to-end scenarios across the echofield crates live in `tests/tests/`;
-//! this library holds helpers they share (paths to the committed datasets).
+//! this library holds helpers they share (paths to the committed datasets
+//! and the matching configs of the real sonar logs).
 
+use echofield::matching::MatchingConfig;
+use echofield_frontend::off_axis::OffAxisSuppression;
 use std::path::PathBuf;
 
 /// The repository's `datasets/` folder.
@@ -8,4 +11,42 @@ pub fn datasets_dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
         .join("..")
         .join("datasets")
+}
+
+/// The static Ping360 log of `datasets/msis-real/ping360`.
+pub fn ping360_log() -> PathBuf {
+    datasets_dir().join("msis-real/ping360/Sensor_Log_01__inside_base.bin")
+}
+
+/// Matching config for [`ping360_log`]. At its high gain the head's
+/// ringing and near-field reverberation last 0.3-2.9 m, changing from ping
+/// to ping, and only strong returns are walls. The off-axis suppression is
+/// off: its margins are for heads that show decibels (about 3 counts per
+/// dB), while this log saturates its walls, so that a wall's bins differ
+/// by tens of counts from beam to beam. With it on, two sweeps keep too few
+/// returns for a scan and the images of two rotations lose the walls their
+/// scans are matched on.
+pub fn ping360_config() -> MatchingConfig {
+    let mut config = MatchingConfig::default();
+    config.segmentation.blind_zone_m = 4.0;
+    config.segmentation.min_intensity = 150.0;
+    config.segmentation.min_sigma_above_mean = 0.0;
+    config.segmentation.off_axis = OffAxisSuppression::off();
+    config.image.blind_zone_m = 3.0;
+    config.image.off_axis = OffAxisSuppression::off();
+    config
+}
+
+/// The static MiniKing bag of `datasets/msis-real/miniking`.
+pub fn miniking_log() -> PathBuf {
+    datasets_dir().join("msis-real/miniking/full_sonar_scan_2015-05-26-11-38-04.bag")
+}
+
+/// Matching config for [`miniking_log`]: high gain, so the beam's own
+/// spread is large; the strongest bin above the beam's mean is the echo.
+pub fn miniking_config() -> MatchingConfig {
+    let mut config = MatchingConfig::default();
+    config.segmentation.min_sigma_above_mean = 1.0;
+    config.segmentation.min_intensity = 0.0;
+    config
 }

@@ -10,9 +10,8 @@
 use echofield::matching::{MatchingConfig, MissionRotations};
 use echofield_datasets::sim::{Scenario, SimConfig, simulate_mission};
 use echofield_frontend::matcher::{MatchOutcome, SearchWindow, match_scan};
-use echofield_frontend::off_axis::OffAxisSuppression;
 use echofield_graph::Se2;
-use echofield_tests::datasets_dir;
+use echofield_tests::{datasets_dir, miniking_config, miniking_log, ping360_config, ping360_log};
 
 const TOLERANCE_M: f64 = 0.05;
 const TOLERANCE_DEG: f64 = 0.5;
@@ -87,27 +86,9 @@ fn st_pere_replay() {
     );
 }
 
-/// Segmentation for the Ping360 log: its strongest bins within ~4 m are
-/// the head's own ringing, and only strong returns are walls. The
-/// off-axis suppression is off: its margins are for heads that show
-/// decibels (about 3 counts per dB), while this high-gain log saturates
-/// its walls, so that a wall's bins differ by tens of counts from beam to
-/// beam. With it on, two sweeps keep too few returns for a scan and the
-/// images of two rotations lose the walls their scans are matched on.
-fn ping360_config() -> MatchingConfig {
-    let mut config = MatchingConfig::default();
-    config.segmentation.blind_zone_m = 4.0;
-    config.segmentation.min_intensity = 150.0;
-    config.segmentation.min_sigma_above_mean = 0.0;
-    config.segmentation.off_axis = OffAxisSuppression::off();
-    config.image.blind_zone_m = 3.0;
-    config.image.off_axis = OffAxisSuppression::off();
-    config
-}
-
 #[test]
 fn real_ping360_log() {
-    let path = datasets_dir().join("msis-real/ping360/Sensor_Log_01__inside_base.bin");
+    let path = ping360_log();
     let config = ping360_config();
     let rotations = MissionRotations::load(&path, &config).unwrap();
     assert!(rotations.stationary);
@@ -128,18 +109,9 @@ fn real_ping360_log() {
     assert!(without <= 1, "{without} without a scan");
 }
 
-/// Segmentation for the MiniKing bag: high gain, so the beam's own spread
-/// is large; the strongest bin above the mean is the echo.
-fn miniking_config() -> MatchingConfig {
-    let mut config = MatchingConfig::default();
-    config.segmentation.min_sigma_above_mean = 1.0;
-    config.segmentation.min_intensity = 0.0;
-    config
-}
-
 #[test]
 fn real_miniking_log() {
-    let path = datasets_dir().join("msis-real/miniking/full_sonar_scan_2015-05-26-11-38-04.bag");
+    let path = miniking_log();
     let config = miniking_config();
     let rotations = MissionRotations::load(&path, &config).unwrap();
     assert!(rotations.stationary);

@@ -7,40 +7,29 @@
 use echofield::matching::{MatchingConfig, MissionRotations};
 use echofield_frontend::image::AcousticImage;
 use echofield_frontend::matcher::{MatchOutcome, SearchWindow, match_scan};
-use echofield_frontend::off_axis::OffAxisSuppression;
 use echofield_frontend::scan::Scan;
 use echofield_graph::Se2;
-use echofield_tests::datasets_dir;
+use echofield_tests::{miniking_config, miniking_log, ping360_config, ping360_log};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 const TOLERANCE_M: f64 = 0.1;
 const TOLERANCE_DEG: f64 = 1.0;
 
-/// High gain: the strongest bin above the beam's mean is the echo.
 fn miniking() -> (MissionRotations, MatchingConfig) {
-    let mut config = MatchingConfig::default();
-    config.segmentation.min_sigma_above_mean = 1.0;
-    config.segmentation.min_intensity = 0.0;
-    let path = datasets_dir().join("msis-real/miniking/full_sonar_scan_2015-05-26-11-38-04.bag");
-    (MissionRotations::load(&path, &config).unwrap(), config)
+    let config = miniking_config();
+    (
+        MissionRotations::load(&miniking_log(), &config).unwrap(),
+        config,
+    )
 }
 
-/// At this log's high gain the head's ringing and near-field reverberation
-/// last 0.3-2.9 m, changing from ping to ping; only strong returns are
-/// walls. The off-axis suppression is off, as in the paper experiment's
-/// Ping360 config (its margins are for heads that show decibels; this log
-/// saturates its walls).
 fn ping360() -> (MissionRotations, MatchingConfig) {
-    let mut config = MatchingConfig::default();
-    config.segmentation.blind_zone_m = 4.0;
-    config.segmentation.min_intensity = 150.0;
-    config.segmentation.min_sigma_above_mean = 0.0;
-    config.segmentation.off_axis = OffAxisSuppression::off();
-    config.image.blind_zone_m = 3.0;
-    config.image.off_axis = OffAxisSuppression::off();
-    let path = datasets_dir().join("msis-real/ping360/Sensor_Log_01__inside_base.bin");
-    (MissionRotations::load(&path, &config).unwrap(), config)
+    let config = ping360_config();
+    (
+        MissionRotations::load(&ping360_log(), &config).unwrap(),
+        config,
+    )
 }
 
 /// `image_from_scan` found from `prior` in `window`, or a panic naming what.
