@@ -37,10 +37,12 @@ fn st_pere_replay_is_within_a_metre_of_dgps() {
     let dead_reckoning = report.ate_dead_reckoning.as_ref().unwrap();
     assert_eq!(ate.pairs, report.nodes);
     assert!(ate.rmse_m <= 1.0, "ATE {:.3} m against DGPS", ate.rmse_m);
-    // Measured: 0.171 m against 3.07 m for dead reckoning (0.197 m before
-    // the off-axis suppression and the derived heading priors, 0.203 m with
-    // the midpoint fusion of sequential matches). With the densified loops
-    // taken as independent (`densify_correlation = 0`) it was 0.246 m.
+    // Measured: 0.208 m against 3.07 m for dead reckoning (0.171 m with
+    // densification down to a predicted overlap of 0.5 instead of 0.4,
+    // 0.197 m before the off-axis suppression and the derived heading
+    // priors, 0.203 m with the midpoint fusion of sequential matches).
+    // With the densified loops taken as independent
+    // (`densify_correlation = 0`) it was 0.246 m.
     assert!(ate.rmse_m <= 0.22, "ATE {:.3} m against DGPS", ate.rmse_m);
     assert!(
         ate.rmse_m < 0.2 * dead_reckoning.rmse_m,
@@ -56,19 +58,16 @@ fn st_pere_replay_is_within_a_metre_of_dgps() {
     // Loops: measured precision 0.983 (near misses up to 0.76 m off against
     // the 0.5 m tolerance, most at nodes 87 and 206, whose dead reckoning
     // is uncertain by 0.5-1 m over the turn, and densified loops of node
-    // 51 up to 1.2 m off), recall 0.896 of the overlapping node pairs
-    // (0.908 before the off-axis suppression, 0.884 with
-    // `reverse_max_translation_m` 0.5, 0.836 without partial loops) and
-    // 0.967 of the revisits.
+    // 51 up to 1.2 m off), recall 0.911 of the overlapping node pairs
+    // (0.896 with `densify_min_predicted_overlap` 0.5, 0.836 without
+    // partial loops) and 0.967 of the revisits.
     let precision = report.loop_precision.unwrap();
     assert!(precision >= 0.98, "precision {precision:.3}");
     let revisits = report.loop_recall_revisits.unwrap();
     assert!(revisits >= 0.85, "revisit recall {revisits:.3}");
     let recall = report.loop_recall.unwrap();
-    // Issue 5 asks for 0.9; the bound leaves room for the few loops a
-    // different SIMD path of the solver may turn (the figures above are
-    // this machine's).
-    assert!(recall >= 0.88 && recall < revisits, "recall {recall:.3}");
+    // Issue 5 asks for 0.9 (seeds 1-6 measure 0.904-0.917).
+    assert!(recall >= 0.9 && recall < revisits, "recall {recall:.3}");
     // Partial loops: 159 measured, all right across their one wall and in
     // heading (seeds 1-3: 509 of 509); by the whole-pose verdict 5 were
     // false, the estimate being off along the wall.
@@ -104,9 +103,16 @@ fn st_pere_replay_is_within_a_metre_of_dgps() {
         assert!(pairs.insert((l.from, l.to)), "{} -> {} twice", l.from, l.to);
         if l.densified {
             assert_eq!(l.examined_at, last);
+            assert!(l.predicted_overlap >= config.loops.densify_min_predicted_overlap);
             assert!(l.to - l.from >= config.loops.min_separation_nodes as u64);
         }
     }
+    // Densification reaches below the mission's own overlap gate.
+    assert!(
+        dense
+            .iter()
+            .any(|l| l.accepted && l.predicted_overlap < config.loops.min_predicted_overlap)
+    );
     let accepted_edges = output
         .graph
         .edges()
@@ -117,8 +123,8 @@ fn st_pere_replay_is_within_a_metre_of_dgps() {
 
 /// Without densification each node is matched against at most
 /// `max_candidates_per_node` older ones while the mission runs. Measured
-/// on seed 1: recall over node pairs 0.195 (0.896 with it), precision
-/// 0.987 (0.983), ATE 0.168 m (0.171 m).
+/// on seed 1: recall over node pairs 0.195 (0.911 with it), precision
+/// 0.987 (0.983), ATE 0.168 m (0.208 m).
 #[test]
 fn without_densification_recall_stays_at_the_candidates_per_node() {
     let mission = st_pere_mission();
@@ -150,7 +156,8 @@ fn without_densification_recall_stays_at_the_candidates_per_node() {
 /// It no longer pays: with the off-axis suppression and the derived
 /// heading priors the first pass gives 0.171 m on seed 1 and the refined
 /// pass 0.269 m (seeds 2 and 3: 0.187 -> 0.257 m, 0.188 -> 0.306 m; with
-/// 3° heading priors 0.186, 0.208 and 0.250 m). Before them it took seed 1
+/// 3° heading priors 0.186, 0.208 and 0.250 m; all with densification
+/// down to a predicted overlap of 0.5). Before them it took seed 1
 /// from 0.197 to 0.167 m. Why the second pass now loses is open (keeping
 /// the dead reckoning's heading inside the rotations did not help); this
 /// test holds what it must keep: a trajectory far better than dead

@@ -170,7 +170,8 @@ pub struct MotionCompensationConfig {
     /// derived heading priors (`backend.heading_prior_sigma_rad`). With
     /// them the first pass gives 0.171-0.188 m on St Pere seeds 1-3 and the
     /// refined pass 0.257-0.306 m (0.186-0.250 m with 3° heading priors):
-    /// it no longer pays, for reasons not yet understood.
+    /// it no longer pays, for reasons not yet understood (figures with
+    /// `loops.densify_min_predicted_overlap` 0.5).
     pub refine: bool,
 }
 

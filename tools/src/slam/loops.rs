@@ -159,7 +159,7 @@ impl<'a> LoopCloser<'a> {
             return Vec::new();
         }
         let poses = estimate.poses();
-        let mut overlaps = self.overlapping(k, nodes, poses);
+        let mut overlaps = self.overlapping(k, nodes, poses, self.config.min_predicted_overlap);
         overlaps.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
         let max = self.config.max_candidates_per_node;
         overlaps.truncate(CANDIDATE_POOL * max);
@@ -198,9 +198,10 @@ impl<'a> LoopCloser<'a> {
 
     /// The densification pass after the mission (`LoopConfig::densify`):
     /// every pair at least `min_separation_nodes` apart that was never
-    /// examined, whose predicted overlap at the current estimate passes
-    /// the gate and whose search window (`n_sigma` of the relative
-    /// uncertainty) fits within `densify_max_window`, is matched by
+    /// examined, whose predicted overlap at the current estimate is at
+    /// least `densify_min_predicted_overlap` and whose search window
+    /// (`n_sigma` of the relative uncertainty) fits within
+    /// `densify_max_window`, is matched by
     /// climbing from the estimate to the nearest maximum of eq. (6), within
     /// `min_window` ([`match_scan_local`](echofield_frontend::matcher::match_scan_local)),
     /// the symmetric match likewise. A loop that passes the checks of
@@ -226,7 +227,8 @@ impl<'a> LoopCloser<'a> {
                 continue;
             }
             let poses = estimate.poses();
-            let pairs = self.overlapping(k, nodes, poses);
+            let pairs =
+                self.overlapping(k, nodes, poses, self.config.densify_min_predicted_overlap);
             if pairs.is_empty() {
                 continue;
             }
@@ -274,7 +276,13 @@ impl<'a> LoopCloser<'a> {
     /// Older nodes `j` (at least `min_separation_nodes` back, never
     /// examined with `k`) whose predicted overlap with `k` at `poses`
     /// passes the gate, with that overlap.
-    fn overlapping(&self, k: usize, nodes: &[NodeData], poses: &[Se2]) -> Vec<(usize, f64)> {
+    fn overlapping(
+        &self,
+        k: usize,
+        nodes: &[NodeData],
+        poses: &[Se2],
+        min_overlap: f64,
+    ) -> Vec<(usize, f64)> {
         let node = &nodes[k];
         (0..=k - self.config.min_separation_nodes)
             .filter(|&j| nodes[j].matchable() && !self.examined.contains(&(j, k)))
@@ -290,7 +298,7 @@ impl<'a> LoopCloser<'a> {
                     nodes[j].footprint_m,
                     OVERLAP_STRIDE,
                 );
-                (overlap >= self.config.min_predicted_overlap).then_some((j, overlap))
+                (overlap >= min_overlap).then_some((j, overlap))
             })
             .collect()
     }
