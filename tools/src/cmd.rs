@@ -4,6 +4,7 @@ pub mod bench_dead_reckoning;
 pub mod bench_matcher;
 pub mod convert;
 pub mod demo;
+pub mod error_budget;
 pub mod eval;
 pub mod eval_loops;
 pub mod matching;

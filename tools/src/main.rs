@@ -38,6 +38,8 @@ enum Command {
     Eval(cmd::eval::Args),
     /// Precision-recall of the loop-closure gate from a run's loops.csv.
     EvalLoops(cmd::eval_loops::Args),
+    /// Errors of a run's edges against ground truth, and what each kind costs.
+    ErrorBudget(cmd::error_budget::Args),
     /// Simulate the built-in marina mission and run the whole pipeline on it.
     Demo(cmd::demo::Args),
 }
@@ -53,6 +55,7 @@ fn main() -> ExitCode {
         Command::Match(args) => cmd::matching::run(args),
         Command::BenchMatcher(args) => cmd::bench_matcher::run(args),
         Command::BenchDeadReckoning(args) => cmd::bench_dead_reckoning::run(args),
+        Command::ErrorBudget(args) => cmd::error_budget::run(args),
         Command::Eval(args) => cmd::eval::run(args),
         Command::EvalLoops(args) => cmd::eval_loops::run(args),
         Command::Demo(args) => cmd::demo::run(args),

@@ -45,6 +45,7 @@
 
 pub mod config;
 pub mod error;
+pub mod error_budget;
 pub mod estimate;
 pub mod evaluation;
 pub mod loops;

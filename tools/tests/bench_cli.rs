@@ -105,3 +105,62 @@ fn a_mission_without_ground_truth_is_refused_by_name() {
         assert!(stderr.contains("ground truth"), "{command}: {stderr}");
     }
 }
+
+#[test]
+fn error_budget_reports_on_a_mission_file() {
+    let sample =
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../datasets/samples/tank-seed1.mcap");
+    let dir = tempfile::tempdir().unwrap();
+    let json = dir.path().join("budget.json");
+    let out = stdout_of(&echofield(&[
+        "error-budget",
+        sample.to_str().unwrap(),
+        "--json",
+        json.to_str().unwrap(),
+    ]));
+    // 10 rotations, 10 nodes: 9 odometry and sequential edges, no loop
+    // (they need 10 rotations between their nodes).
+    assert!(out.contains("10 nodes (10 with ground truth)"), "{out}");
+    assert!(out.contains("| Odometry | 9 |"), "{out}");
+    assert!(out.contains("| Sequential |"), "{out}");
+    assert!(!out.contains("| Loop |"), "{out}");
+    let budget: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let solves = budget["oracle_solves"].as_array().unwrap();
+    let replaced: Vec<&serde_json::Value> = solves.iter().map(|s| &s["replaced"]).collect();
+    assert_eq!(
+        replaced,
+        [
+            &serde_json::json!([]),
+            &serde_json::json!(["odometry"]),
+            &serde_json::json!(["sequential"]),
+            &serde_json::json!(["odometry", "sequential"]),
+        ]
+    );
+    // The graph solved again is the run's solution: its ATE is the one
+    // the first line reports.
+    let run_ate = number_after(&out, "run ATE");
+    let again = solves[0]["ate_rmse_m"].as_f64().unwrap();
+    assert!((again - run_ate).abs() < 2e-3, "{again} vs {out}");
+    assert!(
+        solves
+            .iter()
+            .all(|s| s["ate_rmse_m"].as_f64().unwrap().is_finite())
+    );
+}
+
+#[test]
+fn error_budget_needs_ground_truth() {
+    // The tank sample without its ground truth.
+    let sample =
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../datasets/samples/tank-seed1.mcap");
+    let mut mission = echofield::slam::load_mission(&sample).unwrap();
+    mission.ground_truth.clear();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("no-truth.mcap");
+    echofield_datasets::mcap::write_mission(&path, &mission).unwrap();
+    let run = echofield(&["error-budget", path.to_str().unwrap()]);
+    assert!(!run.status.success());
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(stderr.contains("has no ground truth"), "{stderr}");
+}

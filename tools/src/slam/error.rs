@@ -34,6 +34,9 @@ pub enum SlamError {
     Graph(#[from] GraphError),
     #[error("optimisation: {0}")]
     Solve(#[from] SolveError),
+    /// An evaluation against ground truth that cannot be computed.
+    #[error("evaluation: {0}")]
+    Evaluation(String),
 }
 
 impl SlamError {
