@@ -274,8 +274,8 @@ impl<'a> LoopCloser<'a> {
     }
 
     /// Older nodes `j` (at least `min_separation_nodes` back, never
-    /// examined with `k`) whose predicted overlap with `k` at `poses`
-    /// passes the gate, with that overlap.
+    /// examined with `k`) whose predicted overlap with `k` at `poses` is
+    /// at least `min_overlap`, with that overlap.
     fn overlapping(
         &self,
         k: usize,
