@@ -171,10 +171,11 @@ pub struct MotionCompensationConfig {
     /// them the first pass gives 0.171-0.188 m on St Pere seeds 1-3 and the
     /// refined pass 0.257-0.306 m (0.186-0.250 m with 3° heading priors):
     /// it no longer pays (figures with `loops.densify_min_predicted_overlap`
-    /// 0.5). What is known of why (St Pere seeds 3 and 6, marina seed 1,
-    /// the graphs' edges compared with the ground truth): the refined
-    /// loops are better (precision 0.989-0.993 against 0.982-0.987, recall
-    /// 0.92-0.94 against 0.90-0.92) and so are the sequential matches in
+    /// 0.5). What is known of why, from the graphs' edges compared with
+    /// the ground truth (`echofield error-budget` does this): on St Pere
+    /// seeds 1-6 the refined loops are better (precision 0.989-0.993
+    /// against 0.982-0.987, recall 0.92-0.94 against 0.90-0.92), and on
+    /// seeds 3 and 6 and marina seed 1 so are the sequential matches in
     /// random error, but the sequential matches' scale error about doubles
     /// (St Pere +0.10% -> +0.18-0.21%, marina -0.15% -> -0.35% of the
     /// displacement): the bend carries the first pass's scale error into
