@@ -42,10 +42,7 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> Result<()> {
-    let config = match &args.config {
-        Some(path) => SlamConfig::from_toml_file(path)?,
-        None => SlamConfig::default(),
-    };
+    let config = SlamConfig::from_optional_toml_file(args.config.as_deref())?;
     let scenario = Scenario::named(&args.scenario)
         .with_context(|| format!("cannot set up scenario `{}`", args.scenario))?;
     let summary = run_demo(

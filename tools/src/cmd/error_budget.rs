@@ -43,10 +43,7 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> Result<()> {
-    let config = match &args.config {
-        Some(path) => SlamConfig::from_toml_file(path)?,
-        None => SlamConfig::default(),
-    };
+    let config = SlamConfig::from_optional_toml_file(args.config.as_deref())?;
     let mission = load_mission(&args.mission)?;
     let output = run_mission(&mission, &config, &NoProgress)
         .with_context(|| format!("SLAM on {} failed", args.mission.display()))?;

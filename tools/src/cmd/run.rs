@@ -46,10 +46,7 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> Result<()> {
-    let config = match &args.config {
-        Some(path) => SlamConfig::from_toml_file(path)?,
-        None => SlamConfig::default(),
-    };
+    let config = SlamConfig::from_optional_toml_file(args.config.as_deref())?;
     let start = Instant::now();
     let mission = load_mission(&args.mission)?;
     let reading_s = start.elapsed().as_secs_f64();

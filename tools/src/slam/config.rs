@@ -107,6 +107,12 @@ impl SlamConfig {
         Self::from_toml_str(&text).with_context(|| format!("in config {}", path.display()))
     }
 
+    /// The configuration of `path` when given, else the defaults (the
+    /// `--config` option of the commands that run the pipeline).
+    pub fn from_optional_toml_file(path: Option<&Path>) -> anyhow::Result<Self> {
+        path.map_or_else(|| Ok(Self::default()), Self::from_toml_file)
+    }
+
     /// The effective configuration as TOML (for `config.toml` beside the
     /// outputs).
     pub fn to_toml_string(&self) -> String {
