@@ -103,15 +103,17 @@ fn marina_mission_is_five_times_better_than_dead_reckoning() {
 
     // Loops: many, nearly all within the true-positive tolerances (0.5 m,
     // 3 deg), at most one in a hundred more than 1 m off and none more than
-    // 1.5 m. Measured on seed 1: ATE 0.290 m (dead reckoning 2.816 m,
-    // 9.7x; 0.488 m before the off-axis suppression and the derived heading
-    // priors), precision 0.990 (seven loops 0.55-1.04 m off: 42 -> 65 slid
-    // 1.04 m along a quay, where its covariance gives 0.34 m, and the Cauchy
-    // kernel weighs it 0.64), recall 0.731 of the overlapping node pairs and
-    // 0.957 of the revisits. 200 of the 699 loops are partial
-    // (`densify_partial`): they see one quay along its length, and 199 are
-    // right across the quay (within 0.5 m) and in heading; without them
-    // recall was 0.512 (with `reverse_max_translation_m` 0.5).
+    // 1.5 m. Measured on seed 1: ATE 0.295 m (dead reckoning 2.816 m,
+    // 9.6x; 0.488 m before the off-axis suppression and the derived heading
+    // priors), precision 0.991 (seven loops 0.55-1.04 m off: 42 -> 65 slid
+    // 1.04 m along a quay, where its covariance gives 0.35 m, and the Cauchy
+    // kernel weighs it 0.63), recall 0.785 of the overlapping node pairs
+    // (0.741 before densification retried the pairs the mission rejected
+    // for their window or covariance) and 0.957 of the revisits. 248 of the
+    // 750 loops are partial (`densify_partial`): they see one quay along
+    // its length, and 247 are right across the quay (within 0.5 m) and in
+    // heading; without them recall was 0.512 (with
+    // `reverse_max_translation_m` 0.5).
     assert!(
         report.loops_accepted >= 150,
         "{} loops",

@@ -60,19 +60,21 @@ fn st_pere_replay_is_within_a_metre_of_dgps() {
     // Loops: measured precision 0.983 (near misses up to 0.76 m off against
     // the 0.5 m tolerance, most at nodes 87 and 206, whose dead reckoning
     // is uncertain by 0.5-1 m over the turn, and densified loops of node
-    // 51 up to 1.2 m off), recall 0.911 of the overlapping node pairs
-    // (0.896 with `densify_min_predicted_overlap` 0.5, 0.836 without
+    // 51 up to 1.2 m off), recall 0.920 of the overlapping node pairs
+    // (0.911 without the densification's retries of pairs the mission
+    // rejected for their window or covariance, 0.896 with
+    // `densify_min_predicted_overlap` 0.5 instead of 0.4, 0.836 without
     // partial loops) and 0.987 of the revisits.
     let precision = report.loop_precision.unwrap();
     assert!(precision >= 0.98, "precision {precision:.3}");
     let revisits = report.loop_recall_revisits.unwrap();
     assert!(revisits >= 0.85, "revisit recall {revisits:.3}");
     let recall = report.loop_recall.unwrap();
-    // Issue 5 asks for 0.9 (seeds 1-6 measure 0.904-0.917).
+    // Issue 5 asks for 0.9 (seeds 1-6 measure 0.912-0.924).
     assert!(recall >= 0.9 && recall < revisits, "recall {recall:.3}");
-    // Partial loops: 178 measured, all right across their one wall and in
+    // Partial loops: 184 measured, all right across their one wall and in
     // heading (509 of 509 on seeds 1-3 with densification down to 0.5);
-    // by the whole-pose verdict 6 were false, the estimate being off along
+    // by the whole-pose verdict 7 were false, the estimate being off along
     // the wall.
     let counts = report.loop_evaluation.as_ref().unwrap();
     assert!(counts.partial_loops >= 50, "{counts:?}");
@@ -97,19 +99,34 @@ fn st_pere_replay_is_within_a_metre_of_dgps() {
         "{} densified loops",
         report.loops_densified
     );
-    // Densified pairs come after the mission, never repeat a pair the
-    // mission examined, and keep the minimum separation.
+    // Densified pairs come after the mission and keep the minimum
+    // separation; a pair the mission examined comes back only when the
+    // mission rejected it for how it was searched (window, covariance).
     let config = SlamConfig::default();
     let last = (report.nodes - 1) as u64;
-    let mut pairs = std::collections::HashSet::new();
+    let mut pairs = std::collections::HashMap::new();
+    let mut retried = 0;
     for l in &output.loops {
-        assert!(pairs.insert((l.from, l.to)), "{} -> {} twice", l.from, l.to);
+        if let Some(earlier) = pairs.insert((l.from, l.to), l) {
+            assert!(
+                l.densified
+                    && !earlier.densified
+                    && earlier
+                        .rejected_by
+                        .is_some_and(|r| r.densification_retries()),
+                "{} -> {} twice",
+                l.from,
+                l.to
+            );
+            retried += 1;
+        }
         if l.densified {
             assert_eq!(l.examined_at, last);
             assert!(l.predicted_overlap >= config.loops.densify_min_predicted_overlap);
             assert!(l.to - l.from >= config.loops.min_separation_nodes as u64);
         }
     }
+    assert!(retried > 0);
     // Densification reaches below the mission's own overlap gate.
     assert!(
         dense

@@ -30,7 +30,10 @@
 //!    the pairs never examined whose relative pose the estimate already
 //!    knows are matched by a local climb from the estimate, gated by the
 //!    tighter `densify_max_sigma`, and accepted when they agree with the
-//!    estimate ([`LoopCloser::densify`]). Loops that share a node
+//!    estimate ([`LoopCloser::densify`]); so are the pairs the mission
+//!    rejected only for how they were searched (a window too large, a peak
+//!    at its edge, a match unsure along some direction:
+//!    [`RejectReason::densification_retries`]). Loops that share a node
 //!    share its errors: a scan built with a wrong motion within its
 //!    rotation, or seen along a wall, misplaces every loop it takes part
 //!    in the same way (on the simulated missions and the St Pere replay
@@ -198,7 +201,8 @@ impl<'a> LoopCloser<'a> {
 
     /// The densification pass after the mission (`LoopConfig::densify`):
     /// every pair at least `min_separation_nodes` apart that was never
-    /// examined, whose predicted overlap at the current estimate is at
+    /// examined or that [`retried_pairs`](Self::retried_pairs) lists, whose
+    /// predicted overlap at the current estimate is at
     /// least `densify_min_predicted_overlap` and whose search window
     /// (`n_sigma` of the relative uncertainty) fits within
     /// `densify_max_window`, is matched by
@@ -221,6 +225,9 @@ impl<'a> LoopCloser<'a> {
             return Ok(false);
         }
         let before = self.dense.len();
+        for pair in self.retried_pairs() {
+            self.examined.remove(&pair);
+        }
         let min = &self.config.min_window;
         for k in sep..n {
             if !nodes[k].matchable() {
@@ -271,6 +278,36 @@ impl<'a> LoopCloser<'a> {
         }
         estimate.set_loops(self.accepted_edges());
         Ok(true)
+    }
+
+    /// The pairs the mission pass examined and rejected only for reasons
+    /// that [`RejectReason::densification_retries`], with no densified
+    /// record yet: densification matches them again. Most were rejected
+    /// for their covariance and come back as partial loops. Measured
+    /// (one thread, seeds as in `LoopConfig::densify_min_predicted_overlap`):
+    /// loop recall on marina seeds 1-10 0.701-0.741 → 0.742-0.785, on St
+    /// Pere seeds 1-6 0.904-0.917 → 0.912-0.924; precision and ATE within
+    /// ±0.001 and ±0.004 m per mission. Retrying every rejected pair
+    /// instead added 0.3-0.6 points of recall and lost 0.001 of precision
+    /// on three St Pere seeds.
+    fn retried_pairs(&self) -> Vec<(usize, usize)> {
+        let mut verdict: HashMap<(usize, usize), bool> = HashMap::new();
+        for r in &self.records {
+            let pair = (r.from as usize, r.to as usize);
+            let retry = !r.densified
+                && r.rejected_by
+                    .is_some_and(RejectReason::densification_retries);
+            verdict
+                .entry(pair)
+                .and_modify(|v| *v &= retry)
+                .or_insert(retry);
+        }
+        let mut pairs: Vec<_> = verdict
+            .into_iter()
+            .filter_map(|(pair, retry)| retry.then_some(pair))
+            .collect();
+        pairs.sort_unstable();
+        pairs
     }
 
     /// Older nodes `j` (at least `min_separation_nodes` back, never
@@ -567,6 +604,51 @@ mod tests {
             z: Se2::identity(),
             covariance: Matrix3::identity(),
         }
+    }
+
+    /// A record of the pair `(from, to)` with the given outcome.
+    fn record(
+        from: usize,
+        to: usize,
+        rejected_by: Option<RejectReason>,
+        densified: bool,
+    ) -> LoopRecord {
+        let candidate = Candidate {
+            from,
+            to,
+            prior: Se2::identity(),
+            prior_covariance: Matrix3::identity(),
+            predicted_overlap: 0.8,
+            raw_window: SearchWindow::new(1.0, 1.0, 0.1),
+            wide: false,
+            densify: densified,
+        };
+        let mut record = candidate.record(to, &LoopConfig::default());
+        record.rejected_by = rejected_by;
+        record
+    }
+
+    #[test]
+    fn densification_retries_the_pairs_rejected_for_how_they_were_searched() {
+        let (config, matcher) = (LoopConfig::default(), MatcherConfig::default());
+        let mut closer = LoopCloser::new(&config, &matcher);
+        closer.records = vec![
+            record(0, 12, Some(RejectReason::Covariance), false),
+            record(1, 13, Some(RejectReason::WindowEdge), false),
+            record(2, 14, Some(RejectReason::Deferred), false),
+            // Evidence against the match: not retried.
+            record(3, 15, Some(RejectReason::Quality), false),
+            record(4, 16, Some(RejectReason::ReverseMismatch), false),
+            record(5, 17, Some(RejectReason::Inconsistent), false),
+            record(6, 18, Some(RejectReason::NoMatch), false),
+            // Deferred, then matched and accepted: not retried.
+            record(7, 19, Some(RejectReason::Deferred), false),
+            record(7, 19, None, false),
+            // Already densified once.
+            record(8, 20, Some(RejectReason::Covariance), false),
+            record(8, 20, Some(RejectReason::Covariance), true),
+        ];
+        assert_eq!(closer.retried_pairs(), vec![(0, 12), (1, 13), (2, 14)]);
     }
 
     #[test]

@@ -148,6 +148,23 @@ pub enum RejectReason {
     RobustKernel,
 }
 
+impl RejectReason {
+    /// The mission pass rejected the pair for how it was searched, not for
+    /// what the match showed: the window was too large (`Deferred`), the
+    /// peak lay at its edge (`WindowEdge`) or the match was unsure along
+    /// some direction (`Covariance`). Densification matches such a pair
+    /// again from the optimised estimate, where the window is small and a
+    /// match blind along one direction can be a partial loop. A match that
+    /// failed on its quality, its symmetric match or the mutual consistency
+    /// is evidence against the pair and is not retried.
+    pub fn densification_retries(self) -> bool {
+        matches!(
+            self,
+            RejectReason::Deferred | RejectReason::WindowEdge | RejectReason::Covariance
+        )
+    }
+}
+
 /// Final weight of a loop edge under the robust kernel below which the
 /// loop counts as rejected by it.
 pub const ROBUST_WEIGHT_REJECTED: f64 = 0.1;
