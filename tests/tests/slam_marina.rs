@@ -174,7 +174,10 @@ fn marina_mission_is_five_times_better_than_dead_reckoning() {
     let revisits = report.loop_recall_revisits.unwrap();
     assert!(revisits >= 0.88, "revisit recall {revisits:.3}");
     let recall = report.loop_recall.unwrap();
-    assert!(recall >= 0.6 && recall < revisits, "recall {recall:.3}");
+    // Measured 0.785; 0.741 before densification retried the pairs the
+    // mission rejected for their window or covariance, which this bound
+    // guards (issue 5 asks for 0.9; seeds 1-10 measure 0.742-0.785).
+    assert!(recall >= 0.76 && recall < revisits, "recall {recall:.3}");
     assert!(
         counts.recall_pairs > 800,
         "{} recall pairs",
