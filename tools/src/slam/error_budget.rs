@@ -30,6 +30,7 @@
 //! nodes with ground truth.
 
 use super::SlamError;
+use super::evaluation::MAX_TIME_DIFF_S;
 use super::result::SlamOutput;
 use crate::eval::{Alignment, ate};
 use echofield_backend::{SolverConfig, edge_error, optimize};
@@ -267,7 +268,7 @@ fn trajectory_error(
             ))
         })
         .unzip();
-    ate(&estimate, &reference, Alignment::Se2, 1e-6)
+    ate(&estimate, &reference, Alignment::Se2, MAX_TIME_DIFF_S)
         .map(|a| a.rmse_m)
         .map_err(|e| SlamError::Evaluation(e.to_string()))
 }

@@ -55,8 +55,10 @@ use echofield_graph::Se2;
 use echofield_graph::io::TrajectoryPose;
 use std::collections::{BTreeMap, HashSet};
 
-/// Stamps of the same node agree exactly; any small tolerance works.
-const MAX_TIME_DIFF_S: f64 = 1e-3;
+/// Time tolerance of the ATE/RPE association between a node's pose and its
+/// ground truth: stamps of the same node agree exactly, so any small value
+/// works (also used by [`super::error_budget`]).
+pub(crate) const MAX_TIME_DIFF_S: f64 = 1e-3;
 
 /// Fills the ground-truth fields of `nodes`, `loops` and `report`. Does
 /// nothing when `ground_truth` is empty.
