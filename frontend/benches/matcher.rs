@@ -12,7 +12,7 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use echofield_frontend::image::synthetic::{
     RotationPath, SceneConfig, simulate_rotation, static_rotation,
 };
-use echofield_frontend::image::{AcousticImage, ImageConfig, Interpolation};
+use echofield_frontend::image::{AcousticImage, ImageConfig, Interpolation, PoseFitRaster};
 use echofield_frontend::matcher::{MatcherConfig, SearchWindow, match_scan, match_scan_local};
 use echofield_graph::Se2;
 use std::hint::black_box;
@@ -28,12 +28,31 @@ fn build_image(c: &mut Criterion) {
         1,
     );
     let mut group = c.benchmark_group("build_image_200x500");
-    for (name, interpolation) in [
-        ("angular_window", Interpolation::AngularWindow),
-        ("nearest", Interpolation::Nearest),
+    let without_pose_fit = PoseFitRaster {
+        enabled: false,
+        ..PoseFitRaster::default()
+    };
+    for (name, interpolation, pose_fit) in [
+        (
+            "angular_window",
+            Interpolation::AngularWindow,
+            PoseFitRaster::default(),
+        ),
+        (
+            "angular_window_without_pose_fit_raster",
+            Interpolation::AngularWindow,
+            without_pose_fit.clone(),
+        ),
+        ("nearest", Interpolation::Nearest, PoseFitRaster::default()),
+        (
+            "nearest_without_pose_fit_raster",
+            Interpolation::Nearest,
+            without_pose_fit.clone(),
+        ),
     ] {
         let config = ImageConfig {
             interpolation,
+            pose_fit,
             ..ImageConfig::default()
         };
         group.bench_function(name, |b| {

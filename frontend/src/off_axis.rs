@@ -85,7 +85,11 @@
 //!
 //! The marina gains (at 15 and 0.22, seed 2: 0.421 → 0.226 m, seed 8:
 //! 0.546 → 0.363 m) but seed 5 loses (0.401 → 0.460 m), and no setting
-//! keeps the St Pere recall at 0.9, so the default stays at 25.
+//! keeps the St Pere recall at 0.9, so the searched image stays at 25.
+//! The matcher's last step instead reads a second raster with margin 10
+//! and no range smoothing ([`crate::image::PoseFitRaster`], where its
+//! figures are): the pose gains the smaller bias while the search and
+//! the gates keep the image they were set for.
 
 use crate::error::FrontendError;
 use crate::sensors::SonarBeam;
@@ -258,10 +262,9 @@ pub fn suppress_bins(
             let n = (offsets[j + 1] - offsets[j]).min(offsets[k + 1] - offsets[k]);
             let theirs = &dilated[offsets[k]..offsets[k] + n];
             for (v, &t) in values[offsets[j]..offsets[j] + n].iter_mut().zip(theirs) {
-                // t > v + margin, without overflow.
-                if t.saturating_sub(margin) > *v {
-                    *v = 0;
-                }
+                // t > v + margin, without overflow; branch-free so that
+                // the loop vectorises.
+                *v = if t.saturating_sub(margin) > *v { 0 } else { *v };
             }
         }
     }

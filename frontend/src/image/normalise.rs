@@ -26,17 +26,34 @@ use crate::off_axis::suppress_bins;
 use crate::segmentation::smooth;
 use crate::sensors::SonarBeam;
 
-/// Normalised intensities of every beam, stored flat.
+/// Normalised intensities of every beam, stored flat; `V = [f32; 2]`
+/// holds two versions of every bin side by side ([`Profiles::paired`]).
 #[derive(Clone, Debug, PartialEq)]
-pub struct Profiles {
+pub struct Profiles<V = f32> {
     offsets: Vec<usize>,
-    values: Vec<f32>,
+    values: Vec<V>,
 }
 
 impl Profiles {
+    /// Each bin of `self` next to the same bin of `other`, or `None` when
+    /// their beams do not have the same numbers of bins.
+    pub fn paired(&self, other: &Profiles) -> Option<Profiles<[f32; 2]>> {
+        (self.offsets == other.offsets).then(|| Profiles {
+            offsets: self.offsets.clone(),
+            values: self
+                .values
+                .iter()
+                .zip(&other.values)
+                .map(|(&a, &b)| [a, b])
+                .collect(),
+        })
+    }
+}
+
+impl<V> Profiles<V> {
     /// The normalised bins of beam `j` (possibly fewer than the raw beam's
     /// when `max_range_m` cut it).
-    pub fn beam(&self, j: usize) -> &[f32] {
+    pub fn beam(&self, j: usize) -> &[V] {
         &self.values[self.offsets[j]..self.offsets[j + 1]]
     }
 

@@ -37,6 +37,30 @@ thread_local! {
     /// on the St Pere replay took longer than filling the cells.
     static CLOSEST: RefCell<Vec<u64>> = const { RefCell::new(Vec::new()) };
     static MEAN: RefCell<Vec<[f32; 2]>> = const { RefCell::new(Vec::new()) };
+    static SECOND_SUM: RefCell<Vec<f32>> = const { RefCell::new(Vec::new()) };
+    static SECOND_CLOSEST: RefCell<Vec<u64>> = const { RefCell::new(Vec::new()) };
+}
+
+/// A value painted into the raster: one intensity, or two painted at once
+/// ([`rasterise_pair`]).
+trait Sample: Copy + Default {
+    /// `self += w · v`.
+    fn add_scaled(&mut self, w: f32, v: Self);
+}
+
+impl Sample for f32 {
+    #[inline]
+    fn add_scaled(&mut self, w: f32, v: Self) {
+        *self += w * v;
+    }
+}
+
+impl Sample for [f32; 2] {
+    #[inline]
+    fn add_scaled(&mut self, w: f32, v: Self) {
+        self[0] += w * v[0];
+        self[1] += w * v[1];
+    }
 }
 
 /// Largest image accepted, in cells (256 MB of `f32`).
@@ -67,7 +91,7 @@ impl BeamLine {
     }
 }
 
-fn beam_lines(beams: &[SonarBeam], poses: &[Se2], profiles: &Profiles) -> Vec<BeamLine> {
+fn beam_lines<V>(beams: &[SonarBeam], poses: &[Se2], profiles: &Profiles<V>) -> Vec<BeamLine> {
     let mut lines = Vec::with_capacity(beams.len());
     let mut bearing = 0.0;
     for (j, (beam, pose)) in beams.iter().zip(poses).enumerate() {
@@ -122,10 +146,10 @@ fn covering_grid(lines: &[BeamLine], cell_m: f64) -> Result<Grid, FrontendError>
 }
 
 /// How samples falling into one cell are combined.
-trait Accumulator {
+trait Accumulator<V> {
     /// A sample of value `v` in cell `idx`, at the fractional position
     /// `(fx, fy) / 2³²` within it.
-    fn put(&mut self, idx: usize, fx: u32, fy: u32, v: f32);
+    fn put(&mut self, idx: usize, fx: u32, fy: u32, v: V);
 }
 
 /// Keeps the sample closest to the cell centre. The squared distance (in
@@ -136,18 +160,53 @@ struct ClosestSample<'a> {
     best: &'a mut [u64],
 }
 
-impl Accumulator for ClosestSample<'_> {
+/// The distance part of a [`ClosestSample`] key: the squared distance of
+/// the fixed-point position `(fx, fy) / 2³²` from the cell centre, shifted
+/// into the key's top 32 bits.
+#[inline]
+fn distance_key(fx: u32, fy: u32) -> u64 {
+    // Offsets from the centre on 31-bit fractions, |d| ≤ 2³⁰: the sum of
+    // squares is at most 2⁶¹ (no overflow), and its top bits order the
+    // distances.
+    let dx = i64::from(fx >> 1) - HALF_CELL;
+    let dy = i64::from(fy >> 1) - HALF_CELL;
+    (((dx * dx + dy * dy) >> 30) as u64) << 32
+}
+
+impl Accumulator<f32> for ClosestSample<'_> {
     #[inline]
     fn put(&mut self, idx: usize, fx: u32, fy: u32, v: f32) {
-        // Offsets from the centre on 31-bit fractions, |d| ≤ 2³⁰: the sum
-        // of squares is at most 2⁶¹ (no overflow), and its top bits order
-        // the distances.
-        let dx = i64::from(fx >> 1) - HALF_CELL;
-        let dy = i64::from(fy >> 1) - HALF_CELL;
-        let d2 = ((dx * dx + dy * dy) >> 30) as u64;
-        let key = (d2 << 32) | u64::from(v.to_bits());
+        let key = distance_key(fx, fy) | u64::from(v.to_bits());
         let slot = &mut self.best[idx];
         *slot = (*slot).min(key);
+    }
+}
+
+/// [`ClosestSample`] of two values at once, each in a buffer of its own
+/// (a tie in distance keeps the smaller value in each, as for one).
+struct ClosestPair<'a> {
+    best: &'a mut [u64],
+    second: &'a mut [u64],
+}
+
+impl Accumulator<[f32; 2]> for ClosestPair<'_> {
+    #[inline]
+    fn put(&mut self, idx: usize, fx: u32, fy: u32, v: [f32; 2]) {
+        let d = distance_key(fx, fy);
+        let slot = &mut self.best[idx];
+        *slot = (*slot).min(d | u64::from(v[0].to_bits()));
+        let slot = &mut self.second[idx];
+        *slot = (*slot).min(d | u64::from(v[1].to_bits()));
+    }
+}
+
+/// The value of a [`ClosestSample`] key (0 where no sample fell).
+#[inline]
+fn closest_value(key: u64) -> f32 {
+    if key == u64::MAX {
+        0.0
+    } else {
+        f32::from_bits(key as u32)
     }
 }
 
@@ -157,12 +216,30 @@ struct MeanSample<'a> {
     sum_count: &'a mut [[f32; 2]],
 }
 
-impl Accumulator for MeanSample<'_> {
+impl Accumulator<f32> for MeanSample<'_> {
     #[inline]
     fn put(&mut self, idx: usize, _fx: u32, _fy: u32, v: f32) {
         let slot = &mut self.sum_count[idx];
         slot[0] += v;
         slot[1] += 1.0;
+    }
+}
+
+/// [`MeanSample`] of two values at once, the first with the count and the
+/// second's sum in a buffer of its own (measured faster than three values
+/// side by side: 2.6 against 2.9 ms for a 517 x 504 image).
+struct MeanPair<'a> {
+    sum_count: &'a mut [[f32; 2]],
+    second_sum: &'a mut [f32],
+}
+
+impl Accumulator<[f32; 2]> for MeanPair<'_> {
+    #[inline]
+    fn put(&mut self, idx: usize, _fx: u32, _fy: u32, v: [f32; 2]) {
+        let slot = &mut self.sum_count[idx];
+        slot[0] += v[0];
+        slot[1] += 1.0;
+        self.second_sum[idx] += v[1];
     }
 }
 
@@ -177,7 +254,7 @@ pub fn rasterise(
     let lines = beam_lines(beams, poses, profiles);
     let mut grid = covering_grid(&lines, cell_m)?;
     let n = grid.width() * grid.height();
-    let mut painter = Painter::new(&grid, config);
+    let mut painter = Painter::<f32>::new(&grid, config);
     match config.interpolation {
         Interpolation::Nearest => CLOSEST.with_borrow_mut(|buffer| {
             buffer.clear();
@@ -185,11 +262,7 @@ pub fn rasterise(
             let mut acc = ClosestSample { best: buffer };
             painter.paint(&lines, profiles, &mut acc);
             for (out, key) in grid.values_mut().iter_mut().zip(acc.best.iter()) {
-                *out = if *key == u64::MAX {
-                    0.0
-                } else {
-                    f32::from_bits(*key as u32)
-                };
+                *out = closest_value(*key);
             }
         }),
         Interpolation::AngularWindow => MEAN.with_borrow_mut(|buffer| {
@@ -205,8 +278,74 @@ pub fn rasterise(
     Ok(grid)
 }
 
+/// Rasterises two versions of the same beams (`a` and `b`, the same bins
+/// with other values) into two grids, sweeping the wedges once: what
+/// [`rasterise`] gives for each, for less than the cost of two (profiles
+/// whose beams differ in length are rasterised one after the other).
+pub fn rasterise_pair(
+    beams: &[SonarBeam],
+    poses: &[Se2],
+    a: &Profiles,
+    b: &Profiles,
+    cell_m: f64,
+    config: &ImageConfig,
+) -> Result<(Grid, Grid), FrontendError> {
+    let Some(paired) = a.paired(b) else {
+        return Ok((
+            rasterise(beams, poses, a, cell_m, config)?,
+            rasterise(beams, poses, b, cell_m, config)?,
+        ));
+    };
+    let lines = beam_lines(beams, poses, &paired);
+    let mut grid_a = covering_grid(&lines, cell_m)?;
+    let mut grid_b = covering_grid(&lines, cell_m)?;
+    let n = grid_a.width() * grid_a.height();
+    let mut painter = Painter::<[f32; 2]>::new(&grid_a, config);
+    if config.interpolation == Interpolation::Nearest {
+        CLOSEST.with_borrow_mut(|best| {
+            SECOND_CLOSEST.with_borrow_mut(|second| {
+                for buffer in [&mut *best, &mut *second] {
+                    buffer.clear();
+                    buffer.resize(n, u64::MAX);
+                }
+                let mut acc = ClosestPair { best, second };
+                painter.paint(&lines, &paired, &mut acc);
+                let (out_a, out_b) = (grid_a.values_mut(), grid_b.values_mut());
+                for (i, (&key_a, &key_b)) in acc.best.iter().zip(acc.second.iter()).enumerate() {
+                    out_a[i] = closest_value(key_a);
+                    out_b[i] = closest_value(key_b);
+                }
+            })
+        });
+        return Ok((grid_a, grid_b));
+    }
+    MEAN.with_borrow_mut(|sum_count| {
+        SECOND_SUM.with_borrow_mut(|second_sum| {
+            sum_count.clear();
+            sum_count.resize(n, [0.0; 2]);
+            second_sum.clear();
+            second_sum.resize(n, 0.0);
+            let mut acc = MeanPair {
+                sum_count,
+                second_sum,
+            };
+            painter.paint(&lines, &paired, &mut acc);
+            let (out_a, out_b) = (grid_a.values_mut(), grid_b.values_mut());
+            for (i, (&[sum_a, count], &sum_b)) in
+                acc.sum_count.iter().zip(acc.second_sum.iter()).enumerate()
+            {
+                if count > 0.0 {
+                    out_a[i] = sum_a / count;
+                    out_b[i] = sum_b / count;
+                }
+            }
+        })
+    });
+    Ok((grid_a, grid_b))
+}
+
 /// Sweeps the wedges and feeds samples to an [`Accumulator`].
-struct Painter {
+struct Painter<V> {
     origin_x_m: f64,
     origin_y_m: f64,
     inv_cell: f64,
@@ -218,12 +357,12 @@ struct Painter {
     half_width_rad: f64,
     max_wedge_rad: f64,
     /// Scratch: combined profile of one line, and window weights.
-    combined: Vec<f32>,
+    combined: Vec<V>,
     weights: Vec<(usize, f32)>,
     jobs: Vec<LineJob>,
 }
 
-impl Painter {
+impl<V: Sample> Painter<V> {
     fn new(grid: &Grid, config: &ImageConfig) -> Self {
         let (ox, oy) = grid.origin_m();
         Self {
@@ -242,7 +381,12 @@ impl Painter {
         }
     }
 
-    fn paint<A: Accumulator>(&mut self, lines: &[BeamLine], profiles: &Profiles, acc: &mut A) {
+    fn paint<A: Accumulator<V>>(
+        &mut self,
+        lines: &[BeamLine],
+        profiles: &Profiles<V>,
+        acc: &mut A,
+    ) {
         for j in 0..lines.len() {
             let a = &lines[j];
             let next = lines
@@ -342,7 +486,7 @@ impl Painter {
 
     /// Draws the queued lines of one wedge band by band in range, so the
     /// cells a band touches stay in cache while all its lines visit them.
-    fn draw_jobs<A: Accumulator>(&mut self, profiles: &Profiles, acc: &mut A) {
+    fn draw_jobs<A: Accumulator<V>>(&mut self, profiles: &Profiles<V>, acc: &mut A) {
         const BAND_SAMPLES: usize = 48;
         let total = self
             .jobs
@@ -354,7 +498,7 @@ impl Painter {
         let mut band = 0;
         while band < total {
             for job in &self.jobs {
-                let values: &[f32] = match job.values {
+                let values: &[V] = match job.values {
                     ValueSource::Beam(k) => &profiles.beam(k)[job.start_bin..job.end_bin],
                     ValueSource::Combined(at) => {
                         &self.combined[at..at + job.end_bin - job.start_bin]
@@ -383,7 +527,7 @@ impl Painter {
                 // nearly every run, as the grid covers the lines.
                 let steps = (hi - lo - 1) as i64;
                 if run_inside(x, sx, steps, w) && run_inside(y, sy, steps, h) {
-                    let mut put = |v: f32| {
+                    let mut put = |v: V| {
                         let idx = (y >> 32) as usize * self.width + (x >> 32) as usize;
                         acc.put(idx, x as u32, y as u32, v);
                         x += sx;
@@ -418,7 +562,7 @@ impl Painter {
     fn window_profile(
         &mut self,
         lines: &[BeamLine],
-        profiles: &Profiles,
+        profiles: &Profiles<V>,
         j: usize,
         delta: f64,
         line: &SweepLine,
@@ -450,7 +594,7 @@ impl Painter {
             }
         }
         let at = self.combined.len();
-        self.combined.resize(at + bins - start_bin, 0.0);
+        self.combined.resize(at + bins - start_bin, V::default());
         let total: f32 = self.weights.iter().map(|(_, w)| w).sum();
         if total <= 0.0 {
             return;
@@ -464,7 +608,7 @@ impl Painter {
                 continue;
             }
             for (c, v) in out.iter_mut().zip(&profile[start_bin..end]) {
-                *c += wk * v;
+                c.add_scaled(wk, *v);
             }
         }
     }
@@ -567,6 +711,38 @@ mod tests {
             normalisation_quantile: 1.0,
             smoothing_sigma_m: 0.0,
             ..ImageConfig::default()
+        }
+    }
+
+    #[test]
+    fn a_pair_rasterised_at_once_equals_each_rasterised_alone() {
+        // A moving sonar (so the wedges are swept with several lines) over
+        // a synthetic basin; the second version of the profiles has the
+        // pose-fit raster's margin and smoothing.
+        let rotation = crate::image::synthetic::simulate_rotation(
+            &crate::image::synthetic::SceneConfig::default(),
+            &crate::image::synthetic::RotationPath {
+                world_from_start: Se2::identity(),
+                velocity_mps: (0.4, 0.1),
+                yaw_rate_radps: 0.02,
+            },
+            7,
+        );
+        let (beams, poses) = (&rotation.beams, &rotation.reference_from_beams);
+        for interpolation in [Interpolation::AngularWindow, Interpolation::Nearest] {
+            let cfg = ImageConfig {
+                interpolation,
+                ..ImageConfig::default()
+            };
+            let a = normalise_beams(beams, &cfg);
+            let b = normalise_beams(beams, &cfg.pose_fit.image_config(&cfg));
+            assert_ne!(a, b);
+            let cell = cfg.cell_size_for(beams);
+            let (pair_a, pair_b) = rasterise_pair(beams, poses, &a, &b, cell, &cfg).unwrap();
+            // Bit for bit: the same samples are summed in the same order.
+            assert_eq!(pair_a, rasterise(beams, poses, &a, cell, &cfg).unwrap());
+            assert_eq!(pair_b, rasterise(beams, poses, &b, cell, &cfg).unwrap());
+            assert_ne!(pair_a, pair_b);
         }
     }
 

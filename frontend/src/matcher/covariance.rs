@@ -16,7 +16,7 @@
 //! lattice-normalised coordinates (each axis divided by its step), where
 //! metres and radians are commensurable.
 
-use crate::image::AcousticImage;
+use crate::image::Grid;
 use echofield_graph::Se2;
 use nalgebra::{Matrix3, Point2, SMatrix, SVector, Vector3};
 
@@ -38,7 +38,8 @@ pub struct SurfaceFit {
     pub peak_offset: Vector3<f64>,
 }
 
-/// Fits the quadratic around `pose` and derives the covariance.
+/// Fits the quadratic to the score on `grid` around `pose` and derives the
+/// covariance.
 ///
 /// The lattice steps are one raster cell in x and y and `angle_step_rad`
 /// in θ, and `radius` the lattice's half-size in steps (2 for the
@@ -50,14 +51,13 @@ pub struct SurfaceFit {
 /// ([`Grid::add_bilinear_shifts`](crate::image::Grid::add_bilinear_shifts)).
 pub fn fit_surface(
     points: &[Point2<f64>],
-    image: &AcousticImage,
+    grid: &Grid,
     pose: &Se2,
     angle_step_rad: f64,
     radius: usize,
     window: &Vector3<f64>,
     tau: f64,
 ) -> SurfaceFit {
-    let grid = image.grid();
     let cell_m = grid.cell_size_m();
     let steps = Vector3::new(cell_m, cell_m, angle_step_rad);
     let mut normal = SMatrix::<f64, 10, 10>::zeros();
@@ -184,7 +184,7 @@ fn features(u: &Vector3<f64>) -> SVector<f64, 10> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::image::Grid;
+    use crate::image::AcousticImage;
 
     /// An image whose value is a known quadratic of x and y near the origin
     /// (a paraboloid), so the score of a one-point scan is known exactly.
@@ -210,7 +210,7 @@ mod tests {
         let pose = Se2::new(-0.05, -0.05, 0.0);
         let steps = Vector3::new(0.1, 0.1, 0.01);
         let window = Vector3::new(1.0, 1.0, 0.1);
-        let fit = fit_surface(&points, &image, &pose, steps.z, 2, &window, 0.5);
+        let fit = fit_surface(&points, image.grid(), &pose, steps.z, 2, &window, 0.5);
         assert!((fit.hessian[(0, 0)] + 1.0).abs() < 1e-4, "{}", fit.hessian);
         assert!((fit.hessian[(1, 1)] + 4.0).abs() < 1e-4, "{}", fit.hessian);
         assert!(fit.hessian[(0, 1)].abs() < 1e-4);

@@ -72,7 +72,14 @@ pub struct MatchStats {
 pub struct MatchResult {
     /// `x*`: the pose of the scan frame in the image frame.
     pub image_from_scan: Se2,
-    /// `s(x*)` of eq. (5) (sum over the used points, bilinear lookup).
+    /// The peak found on the searched image, which the score and the
+    /// quality are read at; `image_from_scan` is it moved by the last
+    /// step's fit on the image's pose-fit raster (by at most half a
+    /// lattice step; the same pose when the image has none, see
+    /// `ImageConfig::pose_fit`).
+    pub searched_peak: Se2,
+    /// `s` of eq. (5) at `searched_peak` (sum over the used points,
+    /// bilinear lookup).
     pub score: f64,
     pub quality: MatchQuality,
     /// Covariance of `(x, y, θ)` of `image_from_scan`, m² and rad².

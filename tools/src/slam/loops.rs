@@ -18,7 +18,10 @@
 //!    (a first contact with a place seen long ago) are the best
 //!    `wide_searches_per_node` of them searched over `max_window` at once.
 //! 3. **Matching and checks** ([`checks`]): `S_k` vs `I_j`, quality,
-//!    covariance, window edge, and the symmetric match `S_j` vs `I_k`.
+//!    covariance, window edge, and the symmetric match `S_j` vs `I_k`. A
+//!    candidate predicted to overlap almost entirely whose match lands on
+//!    nothing is searched again over a wider window (the estimate is
+//!    further off than its covariance says).
 //! 4. **Mutual consistency** ([`consistency`]): the loops that passed their
 //!    own checks form a consistency graph; the accepted loops are its
 //!    maximum clique, recomputed whenever a loop is added (so a loop

@@ -20,6 +20,12 @@
 //! 5. `reverse_mismatch`: the symmetric match `S_j` vs `I_k`, a climb to
 //!    the nearest maximum from the inverse of the forward result, must
 //!    agree with it.
+//!
+//! A candidate of the mission pass that the estimate predicts to overlap
+//! almost entirely (`escalate_min_predicted_overlap`) but whose match fails
+//! check 2 or finds nothing is searched once more over a window
+//! `escalate_window_factor` times larger before check 2 is final; the
+//! wider match is kept only when it passes checks 2-4.
 
 use super::LoopConfig;
 use crate::slam::SlamError;
@@ -151,16 +157,26 @@ pub fn examine(
     if let MatchOutcome::Match(m) = &outcome
         && individual_checks(m, candidate, &record.window, config) == Some(RejectReason::WindowEdge)
     {
-        let max = &config.max_window;
-        let w = &record.window;
-        let wider = SearchWindow::new(
-            (2.0 * w.x_m).min(max.x_m.max(w.x_m)),
-            (2.0 * w.y_m).min(max.y_m.max(w.y_m)),
-            (2.0 * w.theta_rad).min(max.theta_rad.max(w.theta_rad)),
-        );
-        if wider != *w {
+        let wider = scaled_window(&record.window, 2.0, &config.max_window);
+        if wider != record.window {
             record.window = wider;
             outcome = search(&wider)?;
+        }
+    }
+    if escalates(&outcome, candidate, &record.window, config) {
+        let wider = scaled_window(
+            &record.window,
+            config.escalate_window_factor,
+            &config.max_window,
+        );
+        if wider != record.window {
+            let again = search(&wider)?;
+            if let MatchOutcome::Match(m) = &again
+                && individual_checks(m, candidate, &wider, config).is_none()
+            {
+                record.window = wider;
+                outcome = again;
+            }
         }
     }
     let m = match outcome {
@@ -212,6 +228,39 @@ pub fn examine(
         record.unconstrained_direction = Some([u.x, u.y]);
     }
     Ok(record)
+}
+
+/// Whether `outcome` of `candidate` is searched again over a larger window
+/// (`LoopConfig::escalate_window_factor`).
+fn escalates(
+    outcome: &MatchOutcome,
+    candidate: &Candidate,
+    window: &SearchWindow,
+    config: &LoopConfig,
+) -> bool {
+    if config.escalate_window_factor <= 1.0
+        || candidate.densify
+        || candidate.wide
+        || candidate.predicted_overlap < config.escalate_min_predicted_overlap
+    {
+        return false;
+    }
+    match outcome {
+        MatchOutcome::Match(m) => {
+            individual_checks(m, candidate, window, config) == Some(RejectReason::Quality)
+        }
+        MatchOutcome::NoMatch { .. } => true,
+    }
+}
+
+/// `window` with every half-width multiplied by `factor`, at most `max`'s
+/// (and never below `window`'s).
+fn scaled_window(window: &SearchWindow, factor: f64, max: &Window) -> SearchWindow {
+    SearchWindow::new(
+        (factor * window.x_m).min(max.x_m.max(window.x_m)),
+        (factor * window.y_m).min(max.y_m.max(window.y_m)),
+        (factor * window.theta_rad).min(max.theta_rad.max(window.theta_rad)),
+    )
 }
 
 /// The unit direction (in `from`'s frame) along which a densification
@@ -336,6 +385,7 @@ mod tests {
     fn match_with_sigma(sigma_xy: f64) -> MatchResult {
         MatchResult {
             image_from_scan: Se2::identity(),
+            searched_peak: Se2::identity(),
             score: 50.0,
             quality: echofield_frontend::matcher::MatchQuality {
                 mean_intensity: 0.6,
@@ -378,6 +428,58 @@ mod tests {
         assert_eq!(
             individual_checks(&match_with_sigma(tight), &c, &window, &config),
             None
+        );
+    }
+
+    #[test]
+    fn a_strongly_overlapping_candidate_that_finds_nothing_is_searched_wider() {
+        let config = LoopConfig::default();
+        let window = SearchWindow::new(0.6, 0.9, 0.06);
+        let mut c = candidate(SearchWindow::new(0.2, 0.3, 0.02));
+        c.predicted_overlap = 0.9;
+        let mut weak = match_with_sigma(0.1);
+        weak.quality.mean_intensity = 0.5 * config.min_mean_intensity;
+        let failed = MatchOutcome::Match(Box::new(weak));
+        let nothing = MatchOutcome::NoMatch {
+            reason: echofield_frontend::matcher::NoMatchReason::NoOverlap,
+        };
+        assert!(escalates(&failed, &c, &window, &config));
+        assert!(escalates(&nothing, &c, &window, &config));
+        // Not a match that passes, nor one failing another check.
+        let good = MatchOutcome::Match(Box::new(match_with_sigma(0.1)));
+        assert!(!escalates(&good, &c, &window, &config));
+        let unsure = MatchOutcome::Match(Box::new(match_with_sigma(2.0)));
+        assert!(!escalates(&unsure, &c, &window, &config));
+        // Not a candidate the estimate predicts to overlap less, a wide
+        // search, a densification climb, or with the factor at 1.
+        let mut low = c.clone();
+        low.predicted_overlap = 0.7;
+        let mut wide = c.clone();
+        wide.wide = true;
+        let mut dense = c.clone();
+        dense.densify = true;
+        for other in [&low, &wide, &dense] {
+            assert!(!escalates(&failed, other, &window, &config));
+        }
+        let off = LoopConfig {
+            escalate_window_factor: 1.0,
+            ..LoopConfig::default()
+        };
+        assert!(!escalates(&failed, &c, &window, &off));
+        // Three times wider, capped at max_window on each axis.
+        let wider = scaled_window(&window, 3.0, &Window::new(10.0, 2.0, 0.5));
+        let want = [1.8, 2.0, 0.18];
+        for (got, want) in [wider.x_m, wider.y_m, wider.theta_rad]
+            .into_iter()
+            .zip(want)
+        {
+            assert!((got - want).abs() < 1e-12, "{wider:?}");
+        }
+        // A window already beyond the cap stays as it is.
+        let big = SearchWindow::new(12.0, 1.0, 0.1);
+        assert_eq!(
+            scaled_window(&big, 3.0, &Window::new(10.0, 10.0, 1.0)).x_m,
+            12.0
         );
     }
 

@@ -53,6 +53,20 @@ pub struct LoopConfig {
     /// at once instead of being deferred. Each costs a few milliseconds.
     /// Default 1.
     pub wide_searches_per_node: usize,
+    /// A candidate of the mission pass (not a wide search, not
+    /// densification) whose predicted overlap is at least
+    /// `escalate_min_predicted_overlap` but whose match fails the quality
+    /// gate, or finds nothing, is searched once more over a window this
+    /// many times larger per axis (at most `max_window`); the second match
+    /// replaces the first only when it passes the individual checks. Where
+    /// the estimate says two scans overlap almost entirely, a match that
+    /// lands on nothing suggests the prior is further off than its
+    /// covariance says: dead-reckoning errors in sharp turns are larger
+    /// than its noise model (up to 1.6 m per rotation on the real St Pere
+    /// navigation). 1 disables it. Default 3.
+    pub escalate_window_factor: f64,
+    /// See `escalate_window_factor`. Default 0.8.
+    pub escalate_min_predicted_overlap: f64,
     /// Matches whose mean image intensity under the points is below this
     /// (`MatchQuality::mean_intensity`, 0-1) are rejected (`quality`).
     /// Default 0.30. It was 0.35 before the images dropped their off-axis
@@ -231,6 +245,8 @@ impl Default for LoopConfig {
             min_window: Window::new(0.5, 0.5, 3.0_f64.to_radians()),
             max_window: Window::new(10.0, 10.0, 10.0_f64.to_radians()),
             wide_searches_per_node: 1,
+            escalate_window_factor: 3.0,
+            escalate_min_predicted_overlap: 0.8,
             min_mean_intensity: 0.30,
             min_inside_fraction: 0.75,
             max_second_peak_ratio: 1.0,
@@ -280,6 +296,18 @@ impl LoopConfig {
             ));
         }
         check_range("loops.n_sigma", self.n_sigma, 0.1, 100.0)?;
+        check_range(
+            "loops.escalate_window_factor",
+            self.escalate_window_factor,
+            1.0,
+            100.0,
+        )?;
+        check_range(
+            "loops.escalate_min_predicted_overlap",
+            self.escalate_min_predicted_overlap,
+            0.0,
+            1.0,
+        )?;
         check_window("loops.min_window", &self.min_window)?;
         check_window("loops.max_window", &self.max_window)?;
         check_range(
