@@ -488,10 +488,10 @@ pub struct EvaluationConfig {
     /// pair can pass the loop quality gate. The matcher's mean intensity
     /// at the true relative pose is about the overlap (measured on the
     /// marina and St Pere missions: median 0.42 at overlaps 0.4-0.5, 0.27
-    /// below 0.3), and `loops.min_mean_intensity` is 0.35, so pairs that
-    /// overlap less cannot be closed by any pose the matcher finds; they
-    /// are not misses of the loop closer. Lower it together with
-    /// `loops.min_mean_intensity`.
+    /// below 0.3), and `loops.min_mean_intensity` was 0.35 when this was
+    /// set (0.30 now), so pairs that overlap less can hardly be closed by
+    /// any pose the matcher finds; they are not misses of the loop closer.
+    /// Lower it together with `loops.min_mean_intensity`.
     pub recall_min_overlap: f64,
     /// Distances of the relative pose error, metres. Default 10, 50, 100.
     pub rpe_distances_m: Vec<f64>,
