@@ -19,6 +19,11 @@
 //! 3. An optional Gaussian smoothing that widens the basin of the score.
 //! 4. [`pyramid`]: max-pooled coarse levels for the branch-and-bound search.
 //!
+//! With [`ImageConfig::pose_fit`] on (the default), steps 1-3 also give a
+//! second raster of the same beams with a smaller off-axis margin and no
+//! range smoothing, painted in the same sweep; only the matcher's last
+//! step, the sub-cell pose fit, reads it ([`PoseFitRaster`]).
+//!
 //! `I(x)` is the bilinear interpolation of the cell values between cell
 //! centres ([`AcousticImage::value_at`]); outside the grid it is 0. The
 //! same interpolation evaluated directly on the samples, without the

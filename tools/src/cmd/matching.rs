@@ -42,7 +42,9 @@ it (config [window]); --prior x,y,theta (metres, metres, degrees) is the
 pose of the scan's frame in the image's frame.
 
 OUT.json holds pose [x, y, theta] (theta in radians), score (eq. 5),
-quality (mean_intensity, inside_fraction, second_peak_ratio, ...),
+quality (mean_intensity, inside_fraction, second_peak_ratio, ...), both
+read at searched_peak, the peak on the searched image that the last
+step's pose fit ([image.pose_fit]) moved to pose,
 covariance (3x3, m and rad), the prior and window, and ground_truth and
 error when the mission has ground truth. A scan that cannot be matched
 (too few points, no echo under any pose of the window) gives matched:
@@ -136,6 +138,7 @@ pub fn run(args: Args) -> Result<()> {
             report["score"] = json!(m.score);
             report["quality"] = serde_json::to_value(&m.quality)?;
             report["covariance"] = matrix_json(&m.covariance);
+            report["searched_peak"] = pose_json(&m.searched_peak);
             report["coarse_pose"] = pose_json(&m.coarse);
             report["stats"] = serde_json::to_value(&m.stats)?;
             if let Some(t) = &truth {
@@ -229,6 +232,7 @@ mod tests {
         let report: serde_json::Value = serde_json::from_str(&text).unwrap();
         assert_eq!(report["matched"], true);
         assert_eq!(report["pose"].as_array().unwrap().len(), 3);
+        assert_eq!(report["searched_peak"].as_array().unwrap().len(), 3);
         assert!(report["score"].as_f64().unwrap() > 0.0);
         let mean = report["quality"]["mean_intensity"].as_f64().unwrap();
         assert!((0.0..=1.0).contains(&mean));
