@@ -44,6 +44,12 @@
 //!   when the unit gives one, as a measurement of `r` with
 //!   `yaw_rate_noise_radps`. Without yaw rates `r` is estimated from the
 //!   headings. Joseph-form covariance updates.
+//! - **Yaw-rate check** (`yaw_rate_check_window_s`, before filtering): the
+//!   integrated yaw rates are compared with the heading changes; when they
+//!   disagree more than the configured noises allow (a biased or
+//!   mis-scaled gyro), the yaw-rate noise is raised to what explains the
+//!   disagreement ([`gyro_check`]; [`Navigation::yaw_rate_noise_radps`]
+//!   gives the noise used).
 //! - **Smoothing** (`smoothing`, on by default): a Rauch-Tung-Striebel pass
 //!   backwards over the filtered steps, so the pose at a beam time uses the
 //!   records after it too (`dead_reckoning/smoother.rs`). Motion compensation is then
@@ -78,6 +84,7 @@
 //! ```
 
 mod ekf;
+pub mod gyro_check;
 mod model;
 mod navigation;
 mod smoother;
@@ -133,8 +140,20 @@ pub struct DeadReckoningConfig {
     pub velocity_random_walk_mps_per_sqrt_s: f64,
     /// Standard deviation of one heading measurement, rad. Default 0.02.
     pub heading_noise_rad: f64,
-    /// Standard deviation of one yaw-rate sample, rad/s. Default 0.01.
+    /// Standard deviation of one yaw-rate sample, rad/s. Default 0.01. A
+    /// floor when `yaw_rate_check_window_s` is on.
     pub yaw_rate_noise_radps: f64,
+    /// Window of the yaw-rate check, s: before filtering, the integrated
+    /// yaw rates are compared with the heading changes over consecutive
+    /// windows this long, and the filter uses the yaw-rate noise that
+    /// explains their disagreement (a lower confidence bound) when it
+    /// exceeds `yaw_rate_noise_radps` (method in
+    /// `dead_reckoning/gyro_check.rs`). A gyro with a bias or a scale error
+    /// then no longer drags the heading away from the headings in turns
+    /// (the real St Pere MTi: 0.041 rad/s instead of 0.01, and the
+    /// replay's loop precision 0.979-0.984 → 0.988-0.992). 0 turns the
+    /// check off. Default 1.
+    pub yaw_rate_check_window_s: f64,
     /// Yaw acceleration noise of the model: the square root of the white
     /// yaw acceleration's spectral density, rad/s² per √Hz (= rad/s per
     /// √s). Default 0.02.
@@ -183,6 +202,7 @@ impl Default for DeadReckoningConfig {
             velocity_random_walk_mps_per_sqrt_s: 0.03,
             heading_noise_rad: 0.02,
             yaw_rate_noise_radps: 0.01,
+            yaw_rate_check_window_s: 1.0,
             yaw_rate_random_walk_radps_per_sqrt_s: 0.02,
             heading_random_walk_rad_per_sqrt_s: 0.0,
             heading_bias_sigma_rad: 2f64.to_radians(),
@@ -221,6 +241,7 @@ impl DeadReckoningConfig {
                 self.velocity_random_walk_mps_per_sqrt_s,
             ),
             ("yaw_rate_noise_radps", self.yaw_rate_noise_radps),
+            ("yaw_rate_check_window_s", self.yaw_rate_check_window_s),
             (
                 "yaw_rate_random_walk_radps_per_sqrt_s",
                 self.yaw_rate_random_walk_radps_per_sqrt_s,
@@ -278,12 +299,28 @@ pub fn run(mission: &Mission, config: &DeadReckoningConfig) -> Result<Navigation
             format!("{offset} is not finite"),
         ));
     }
-    let config = &DeadReckoningConfig {
+    let mut config = DeadReckoningConfig {
         heading_offset_rad: config.heading_offset_rad + offset,
         ..config.clone()
     };
-    ekf::check_records(mission, config)?;
-    ekf::filter(mission, config)
+    ekf::check_records(mission, &config)?;
+    let yaw_rate_check = (config.yaw_rate_check_window_s > 0.0)
+        .then(|| gyro_check::check(&mission.attitude, config.yaw_rate_check_window_s))
+        .flatten();
+    if let Some(c) = &yaw_rate_check
+        && c.yaw_rate_noise_radps > config.yaw_rate_noise_radps
+    {
+        tracing::info!(
+            configured_radps = config.yaw_rate_noise_radps,
+            measured_radps = c.yaw_rate_noise_radps,
+            disagreement_deg = c.disagreement_rad.to_degrees(),
+            "the yaw rates disagree with the headings more than their configured noise allows; using the measured noise"
+        );
+        config.yaw_rate_noise_radps = c.yaw_rate_noise_radps;
+    }
+    let mut navigation = ekf::filter(mission, &config)?;
+    navigation.set_yaw_rate_noise(config.yaw_rate_noise_radps, yaw_rate_check);
+    Ok(navigation)
 }
 
 #[cfg(test)]

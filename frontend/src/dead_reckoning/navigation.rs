@@ -1,6 +1,7 @@
 //! The navigation history (the paper's "transformations history"): the
 //! filter's pose and covariance at every step, queried at any time.
 
+use super::gyro_check::YawRateCheck;
 use super::model::{self, ProcessNoise, pose_block};
 use crate::error::FrontendError;
 use echofield_graph::Se2;
@@ -71,6 +72,9 @@ pub struct Navigation {
     dvl_gated: usize,
     /// The heading unit's wandering error, outside the filter.
     heading_bias: HeadingBias,
+    /// The yaw-rate noise the filter used, rad/s, and the check that set it.
+    yaw_rate_noise_radps: f64,
+    yaw_rate_check: Option<YawRateCheck>,
 }
 
 /// A Gauss-Markov heading error the filter does not estimate (see
@@ -122,6 +126,8 @@ impl Navigation {
             smoothed,
             dvl_gated: 0,
             heading_bias: HeadingBias::default(),
+            yaw_rate_noise_radps: 0.0,
+            yaw_rate_check: None,
         }
     }
 
@@ -247,6 +253,24 @@ impl Navigation {
 
     pub(crate) fn set_dvl_gated(&mut self, count: usize) {
         self.dvl_gated = count;
+    }
+
+    /// Standard deviation of one yaw-rate sample that the filter used,
+    /// rad/s: `DeadReckoningConfig::yaw_rate_noise_radps`, or more when the
+    /// yaw-rate check measured more (0 for navigations from known poses).
+    pub fn yaw_rate_noise_radps(&self) -> f64 {
+        self.yaw_rate_noise_radps
+    }
+
+    /// What the yaw-rate check measured (`None` when it was off or had
+    /// too few samples with yaw rates).
+    pub fn yaw_rate_check(&self) -> Option<&YawRateCheck> {
+        self.yaw_rate_check.as_ref()
+    }
+
+    pub(crate) fn set_yaw_rate_noise(&mut self, noise_radps: f64, check: Option<YawRateCheck>) {
+        self.yaw_rate_noise_radps = noise_radps;
+        self.yaw_rate_check = check;
     }
 
     pub(crate) fn set_heading_bias(&mut self, bias: HeadingBias) {

@@ -94,6 +94,8 @@ pub struct SyntheticNavConfig {
     /// Attitude samples carry the true yaw rate (plus `yaw_rate_noise_radps`).
     pub with_yaw_rate: bool,
     pub yaw_rate_noise_radps: f64,
+    /// Constant error added to every yaw rate, rad/s.
+    pub yaw_rate_bias_radps: f64,
     /// DVL samples inside these intervals (s after the start) are flagged
     /// invalid, their velocity set to NaN.
     pub dvl_dropouts_s: Vec<(f64, f64)>,
@@ -114,6 +116,7 @@ impl Default for SyntheticNavConfig {
             heading_wander_time_constant_s: 120.0,
             with_yaw_rate: true,
             yaw_rate_noise_radps: 0.0,
+            yaw_rate_bias_radps: 0.0,
             dvl_dropouts_s: Vec::new(),
             mounting: SensorMounting::default(),
         }
@@ -183,7 +186,7 @@ pub fn synthetic_mission(path: &SyntheticPath, config: &SyntheticNavConfig, seed
                 yaw_rad: yaw,
                 yaw_rate_radps: config
                     .with_yaw_rate
-                    .then(|| w + rate_noise.sample(&mut rng)),
+                    .then(|| w + config.yaw_rate_bias_radps + rate_noise.sample(&mut rng)),
             }
         })
         .collect();

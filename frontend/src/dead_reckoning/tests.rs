@@ -608,3 +608,86 @@ fn the_wander_change_variance_follows_the_gauss_markov_law() {
     assert_eq!(bias.change_variance(-5.0), bias.change_variance(5.0));
     assert_eq!(HeadingBias::default().change_variance(10.0), 0.0);
 }
+
+/// RMS heading error against the truth, every 0.5 s.
+fn rms_heading_error(nav: &Navigation, path: &SyntheticPath, sim: &SyntheticNavConfig) -> f64 {
+    let n = (sim.duration_s / 0.5) as usize;
+    let sum: f64 = (1..n)
+        .map(|k| {
+            let t = sim.start_s + 0.5 * k as f64;
+            pose_error(&nav.pose_at(t).unwrap(), &truth_at(path, sim, t))
+                .1
+                .powi(2)
+        })
+        .sum();
+    (sum / (n - 1) as f64).sqrt()
+}
+
+#[test]
+fn a_biased_gyro_is_detected_and_no_longer_drags_the_heading() {
+    // A precise compass (0.05°) beside a gyro reading 1°/s off, on the
+    // circle (as the real St Pere MTi: 0.66°/s and a 6% scale error).
+    let sim = SyntheticNavConfig {
+        duration_s: 120.0,
+        heading_noise_rad: 0.05_f64.to_radians(),
+        yaw_rate_bias_radps: 1.0_f64.to_radians(),
+        ..SyntheticNavConfig::default()
+    };
+    let mission = synthetic_mission(&CIRCLE, &sim, 3);
+    let config = DeadReckoningConfig::default();
+    let checked = run(&mission, &config).unwrap();
+    let unchecked = run(
+        &mission,
+        &DeadReckoningConfig {
+            yaw_rate_check_window_s: 0.0,
+            ..config.clone()
+        },
+    )
+    .unwrap();
+    assert_eq!(
+        unchecked.yaw_rate_noise_radps(),
+        config.yaw_rate_noise_radps
+    );
+    assert!(unchecked.yaw_rate_check().is_none());
+    // A bias b reads as b √((T² − Δt²) / (Δt T)) = 0.0175 · √9.9 = 0.055
+    // rad/s over T = 1 s (gyro_check's module doc).
+    let noise = checked.yaw_rate_noise_radps();
+    assert!((noise / 0.055 - 1.0).abs() < 0.05, "{noise}");
+    let (with, without) = (
+        rms_heading_error(&checked, &CIRCLE, &sim),
+        rms_heading_error(&unchecked, &CIRCLE, &sim),
+    );
+    assert!(
+        with < 0.5 * without,
+        "{with} rad with the check, {without} without"
+    );
+}
+
+#[test]
+fn a_gyro_as_consistent_as_configured_is_filtered_as_configured() {
+    // The simulator's units: 0.5° compass noise, 0.2°/s gyro noise.
+    let sim = SyntheticNavConfig {
+        duration_s: 300.0,
+        heading_noise_rad: 0.5_f64.to_radians(),
+        yaw_rate_noise_radps: 0.2_f64.to_radians(),
+        ..SyntheticNavConfig::default()
+    };
+    let mission = synthetic_mission(&CIRCLE, &sim, 4);
+    let config = DeadReckoningConfig::default();
+    let checked = run(&mission, &config).unwrap();
+    let check = checked.yaw_rate_check().unwrap();
+    assert!(
+        check.yaw_rate_noise_radps < config.yaw_rate_noise_radps,
+        "{check:?}"
+    );
+    assert_eq!(checked.yaw_rate_noise_radps(), config.yaw_rate_noise_radps);
+    let unchecked = run(
+        &mission,
+        &DeadReckoningConfig {
+            yaw_rate_check_window_s: 0.0,
+            ..config
+        },
+    )
+    .unwrap();
+    assert_eq!(checked.steps(), unchecked.steps());
+}

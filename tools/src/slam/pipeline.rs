@@ -121,6 +121,7 @@ fn run(
         })
         .collect();
     let time_gaps = time_gaps(&navigation, &nodes, &mut warnings);
+    yaw_rate_warning(&navigation, &config.dead_reckoning, &mut warnings);
     let mut loops = std::mem::take(&mut closer.records);
     let mut report = Report {
         mission: mission.name.clone(),
@@ -419,6 +420,26 @@ fn report_skipped(skipped: &[SkippedRotation], warnings: &mut Vec<String>) {
             first.rotation_index,
             last.rotation_index,
             first.reason
+        ));
+    }
+}
+
+/// Says when the yaw-rate check raised the yaw-rate noise above the
+/// configured one (a gyro that disagrees with the headings).
+fn yaw_rate_warning(
+    navigation: &Navigation,
+    config: &echofield_frontend::dead_reckoning::DeadReckoningConfig,
+    warnings: &mut Vec<String>,
+) {
+    let used = navigation.yaw_rate_noise_radps();
+    if let Some(check) = navigation.yaw_rate_check()
+        && used > config.yaw_rate_noise_radps
+    {
+        warnings.push(format!(
+            "the yaw rates disagree with the headings by {:.2}° RMS over {} s windows: dead reckoning used a yaw-rate noise of {used:.3} rad/s instead of the configured {} (dead_reckoning.yaw_rate_check_window_s)",
+            check.disagreement_rad.to_degrees(),
+            config.yaw_rate_check_window_s,
+            config.yaw_rate_noise_radps,
         ));
     }
 }
