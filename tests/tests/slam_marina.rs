@@ -84,6 +84,18 @@ fn marina_mission_is_five_times_better_than_dead_reckoning() {
     assert!(count(EdgeKind::Sequential) >= report.nodes * 9 / 10);
     assert_eq!(count(EdgeKind::Loop), report.loops_accepted);
     assert!(output.graph.is_connected());
+    // The simulated gyro (0.2°/s noise) agrees with the compass as well as
+    // configured: the yaw-rate check leaves the configured noise.
+    let config = SlamConfig::default();
+    let check = report.dead_reckoning.yaw_rate_check.unwrap();
+    assert!(
+        check.yaw_rate_noise_radps < config.dead_reckoning.yaw_rate_noise_radps,
+        "{check:?}"
+    );
+    assert_eq!(
+        report.dead_reckoning.yaw_rate_noise_radps,
+        config.dead_reckoning.yaw_rate_noise_radps
+    );
 
     // Accuracy: at most 0.2% of the distance, and at least 5x better than
     // dead reckoning at the same stamps.

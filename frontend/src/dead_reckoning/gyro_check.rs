@@ -4,8 +4,8 @@
 //! The filter weighs the two with `heading_noise_rad` and
 //! `yaw_rate_noise_radps`, both white per sample. A gyro with a bias, a
 //! scale error or a wandering error breaks that model: the filter then
-//! trusts the rate's integral where it drifts, and the heading lags the
-//! headings through every turn. The real St Pere MTi is such a unit: its
+//! trusts the rate's integral where it drifts, and the filtered heading
+//! falls behind or runs ahead of the measured one in every turn. The real St Pere MTi is such a unit: its
 //! rate reads 6% more than the heading changes and 0.66°/s off, and the
 //! dead-reckoning heading came out up to 2° from the headings at the end
 //! of fast turns, distorting those rotations' scans and images.
@@ -33,10 +33,12 @@
 //! whose disagreement is within them gets 0. The filter uses the larger of
 //! this and the configured `yaw_rate_noise_radps` (a floor, as for the
 //! DVL noise adaptation), so a consistent unit is filtered exactly as
-//! configured.
+//! configured. Measured over 1 s: 0.040 rad/s on the St Pere MTi, 0 on
+//! the simulated units (heading noise read as 0.50°, as simulated).
 
 use crate::sensors::Attitude;
 use echofield_graph::se2::wrap_angle;
+use serde::{Deserialize, Serialize};
 
 /// Fewest windows of each length for an estimate.
 const MIN_WINDOWS: usize = 20;
@@ -50,7 +52,7 @@ const CONFIDENCE_SIGMAS: f64 = 3.0;
 const MAX_GAP_INTERVALS: f64 = 3.0;
 
 /// What [`check`] measured.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct YawRateCheck {
     /// Median interval between attitude samples, s.
     pub sample_interval_s: f64,

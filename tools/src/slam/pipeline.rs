@@ -8,8 +8,8 @@ use super::loops::LoopCloser;
 use super::nodes::{NodeData, build_nodes};
 use super::refine::refined_navigation;
 use super::result::{
-    DEAD_RECKONING_RATE_HZ, NodeRecord, ROBUST_WEIGHT_REJECTED, RejectReason, Report,
-    SequentialRecord, SkippedRotation, SlamOutput, SolverReport, StageTimings, TimeGap,
+    DEAD_RECKONING_RATE_HZ, DeadReckoningReport, NodeRecord, ROBUST_WEIGHT_REJECTED, RejectReason,
+    Report, SequentialRecord, SkippedRotation, SlamOutput, SolverReport, StageTimings, TimeGap,
 };
 use super::{ProgressSink, SlamError, check_sensors, sequential};
 use echofield_backend::edge_error;
@@ -160,6 +160,11 @@ fn run(
             incremental_time_s: estimate.incremental_time_s,
         },
         time_gaps,
+        dead_reckoning: DeadReckoningReport {
+            dvl_gated: navigation.dvl_gated(),
+            yaw_rate_noise_radps: navigation.yaw_rate_noise_radps(),
+            yaw_rate_check: navigation.yaw_rate_check().copied(),
+        },
         warnings,
         ate_rmse_m: None,
         ate_rmse_dead_reckoning_m: None,

@@ -12,6 +12,7 @@
 use super::config::SlamConfig;
 use crate::eval::{AteStats, RpeStats};
 use echofield_backend::SolveSummary;
+use echofield_frontend::dead_reckoning::gyro_check::YawRateCheck;
 use echofield_frontend::image::{AcousticImage, ImageConfig};
 use echofield_frontend::matcher::{MatchQuality, SearchWindow};
 use echofield_frontend::scan::Scan;
@@ -326,6 +327,21 @@ pub struct LoopEvaluation {
     pub partial_constrained_correct: usize,
 }
 
+/// What dead reckoning measured about the navigation sensors and used.
+#[derive(Clone, Debug, Serialize)]
+pub struct DeadReckoningReport {
+    /// Valid DVL samples the innovation gate rejected
+    /// (`dead_reckoning.dvl_gate_chi2`).
+    pub dvl_gated: usize,
+    /// Standard deviation of one yaw-rate sample the filter used, rad/s:
+    /// `dead_reckoning.yaw_rate_noise_radps`, or more when the yaw-rate
+    /// check measured more.
+    pub yaw_rate_noise_radps: f64,
+    /// The yaw-rate check (`dead_reckoning.yaw_rate_check_window_s`); none
+    /// when it was off or the attitude unit gives no yaw rates.
+    pub yaw_rate_check: Option<YawRateCheck>,
+}
+
 /// The content of `report.json`.
 #[derive(Clone, Debug, Serialize)]
 pub struct Report {
@@ -362,6 +378,7 @@ pub struct Report {
     pub timings: StageTimings,
     pub solver: SolverReport,
     pub time_gaps: Vec<TimeGap>,
+    pub dead_reckoning: DeadReckoningReport,
     /// Warnings worth a user's attention (gaps, skipped rotations, ...).
     pub warnings: Vec<String>,
     /// With ground truth: ATE RMSE of the optimised nodes after SE(2)
