@@ -151,7 +151,7 @@ pub struct DeadReckoningConfig {
     /// `dead_reckoning/gyro_check.rs`). A gyro with a bias or a scale error
     /// then no longer drags the heading away from the headings in turns
     /// (the real St Pere MTi: 0.040 rad/s instead of 0.01, and the
-    /// replay's loop precision 0.979-0.984 → 0.988-0.992). 0 turns the
+    /// replay's loop precision 0.979-0.984 → 0.988-0.993). 0 turns the
     /// check off. Default 1.
     pub yaw_rate_check_window_s: f64,
     /// Yaw acceleration noise of the model: the square root of the white
