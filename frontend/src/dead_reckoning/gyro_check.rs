@@ -35,6 +35,11 @@
 //! DVL noise adaptation), so a consistent unit is filtered exactly as
 //! configured. Measured over 1 s: 0.040 rad/s on the St Pere MTi, 0 on
 //! the simulated units (heading noise read as 0.50°, as simulated).
+//!
+//! A window holds `round(T / Δt)` sample intervals, at least one. A unit
+//! sampled every `T` seconds or more slowly has one-interval windows only:
+//! the two noises cannot be told apart there, and the check gives 0 (the
+//! configured noise is used).
 
 use crate::sensors::Attitude;
 use echofield_graph::se2::wrap_angle;
@@ -204,6 +209,17 @@ mod tests {
                 "{window_s}: {c:?}"
             );
         }
+    }
+
+    #[test]
+    fn a_unit_sampled_no_faster_than_the_window_gets_the_configured_noise() {
+        // 1 Hz samples and 1 s windows: even a 0.01 rad/s bias, which at
+        // 10 Hz reads as 0.03 rad/s, is indistinguishable from heading
+        // noise.
+        let slow: Vec<Attitude> = records(0.0, 0.0, 0.01, 7).into_iter().step_by(10).collect();
+        let c = check(&slow, 1.0).unwrap();
+        assert!((c.sample_interval_s - 1.0).abs() < 1e-9, "{c:?}");
+        assert_eq!(c.yaw_rate_noise_radps, 0.0, "{c:?}");
     }
 
     #[test]
