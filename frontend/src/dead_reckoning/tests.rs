@@ -623,6 +623,22 @@ fn rms_heading_error(nav: &Navigation, path: &SyntheticPath, sim: &SyntheticNavC
     (sum / (n - 1) as f64).sqrt()
 }
 
+/// Dead reckoning of `mission` with `config`, and with the yaw-rate check
+/// off.
+fn with_and_without_check(
+    mission: &Mission,
+    config: &DeadReckoningConfig,
+) -> (Navigation, Navigation) {
+    let unchecked = DeadReckoningConfig {
+        yaw_rate_check_window_s: 0.0,
+        ..config.clone()
+    };
+    (
+        run(mission, config).unwrap(),
+        run(mission, &unchecked).unwrap(),
+    )
+}
+
 #[test]
 fn a_biased_gyro_is_detected_and_no_longer_drags_the_heading() {
     // A precise compass (0.05°) beside a gyro reading 1°/s off, on the
@@ -635,15 +651,7 @@ fn a_biased_gyro_is_detected_and_no_longer_drags_the_heading() {
     };
     let mission = synthetic_mission(&CIRCLE, &sim, 3);
     let config = DeadReckoningConfig::default();
-    let checked = run(&mission, &config).unwrap();
-    let unchecked = run(
-        &mission,
-        &DeadReckoningConfig {
-            yaw_rate_check_window_s: 0.0,
-            ..config.clone()
-        },
-    )
-    .unwrap();
+    let (checked, unchecked) = with_and_without_check(&mission, &config);
     assert_eq!(
         unchecked.yaw_rate_noise_radps(),
         config.yaw_rate_noise_radps
@@ -674,20 +682,12 @@ fn a_gyro_as_consistent_as_configured_is_filtered_as_configured() {
     };
     let mission = synthetic_mission(&CIRCLE, &sim, 4);
     let config = DeadReckoningConfig::default();
-    let checked = run(&mission, &config).unwrap();
+    let (checked, unchecked) = with_and_without_check(&mission, &config);
     let check = checked.yaw_rate_check().unwrap();
     assert!(
         check.yaw_rate_noise_radps < config.yaw_rate_noise_radps,
         "{check:?}"
     );
     assert_eq!(checked.yaw_rate_noise_radps(), config.yaw_rate_noise_radps);
-    let unchecked = run(
-        &mission,
-        &DeadReckoningConfig {
-            yaw_rate_check_window_s: 0.0,
-            ..config
-        },
-    )
-    .unwrap();
     assert_eq!(checked.steps(), unchecked.steps());
 }
