@@ -1,7 +1,19 @@
-//! A regular grid of `f32` intensities with bilinear lookup.
+//! A regular grid of intensities with bilinear lookup.
 //!
 //! Cell `(ix, iy)` covers `[origin + ix·c, origin + (ix+1)·c) × [...)` and its
 //! value sits at the cell centre. Row-major: `values[iy * width + ix]`.
+//!
+//! A [`Grid`] holds `f32` values and is what rasters are painted, smoothed
+//! and blended in. An acoustic image lives for the whole mission (every
+//! older image is a loop-closure target), so the raster it reads least,
+//! the pose fit's, is kept as a [`QuantisedGrid`]: `u16` cells in steps of
+//! `max / 65535`, half the memory of `f32` and a rounding error of at most
+//! `max / 131070` (7.6·10⁻⁶ of the largest value), far below the
+//! intensities' own resolution (8-bit echoes). Both read the same way
+//! ([`Grid::bilinear`] and the rest are defined once for any
+//! [`CellValue`]): a stored value `q` stands for `q · step`, and since
+//! every lookup is linear in the cell values, the step multiplies the
+//! interpolated result.
 
 use nalgebra::Vector2;
 
@@ -26,14 +38,40 @@ pub fn floor(x: f64) -> f64 {
     }
 }
 
+/// The storage of one cell of a [`Grid`].
+pub trait CellValue: Copy + PartialEq + std::fmt::Debug + Send + Sync + 'static {
+    /// The stored value as a number of steps ([`Grid::step`]).
+    fn to_f32(self) -> f32;
+}
+
+impl CellValue for f32 {
+    #[inline]
+    fn to_f32(self) -> f32 {
+        self
+    }
+}
+
+impl CellValue for u16 {
+    #[inline]
+    fn to_f32(self) -> f32 {
+        f32::from(self)
+    }
+}
+
+/// A grid of `u16` cells: the compact form of a finished raster
+/// ([`Grid::quantised`]).
+pub type QuantisedGrid = Grid<u16>;
+
 #[derive(Clone, Debug, PartialEq)]
-pub struct Grid {
+pub struct Grid<T: CellValue = f32> {
     origin_x_m: f64,
     origin_y_m: f64,
     cell_size_m: f64,
     width: usize,
     height: usize,
-    values: Vec<f32>,
+    values: Vec<T>,
+    /// The value one stored unit stands for (1 for `f32` grids).
+    step: f32,
 }
 
 impl Grid {
@@ -52,9 +90,51 @@ impl Grid {
             width,
             height,
             values: vec![0.0; width * height],
+            step: 1.0,
         }
     }
 
+    pub fn values_mut(&mut self) -> &mut [f32] {
+        &mut self.values
+    }
+
+    /// This grid with every cell rounded to the nearest multiple of
+    /// `max / 65535`, `max` its largest value (see the module doc).
+    /// Intensities are not negative: negative and NaN cells become 0.
+    pub fn quantised(&self) -> QuantisedGrid {
+        let max = max_value(&self.values);
+        let (step, inverse) = if max > 0.0 && max.is_finite() {
+            (max / f32::from(u16::MAX), f32::from(u16::MAX) / max)
+        } else {
+            (0.0, 0.0)
+        };
+        let values = self
+            .values
+            .iter()
+            .map(|&v| {
+                // `t > 0` is false for NaN and v ≤ 0.
+                let t = v * inverse;
+                let t = if t > 0.0 { t.min(65_535.0) } else { 0.0 };
+                // Adding 2^23 rounds t to the nearest integer, which is then
+                // the low bits of the mantissa (t < 2^16): a rounding
+                // conversion without the checks of `as`, so the loop
+                // vectorises.
+                (t + 8_388_608.0).to_bits() as u16
+            })
+            .collect();
+        Grid {
+            origin_x_m: self.origin_x_m,
+            origin_y_m: self.origin_y_m,
+            cell_size_m: self.cell_size_m,
+            width: self.width,
+            height: self.height,
+            values,
+            step,
+        }
+    }
+}
+
+impl<T: CellValue> Grid<T> {
     pub fn origin_m(&self) -> (f64, f64) {
         (self.origin_x_m, self.origin_y_m)
     }
@@ -71,21 +151,56 @@ impl Grid {
         self.height
     }
 
-    pub fn values(&self) -> &[f32] {
+    /// The stored cells, row-major; cell `k` holds the value
+    /// `values()[k].to_f32() * step()`.
+    pub fn values(&self) -> &[T] {
         &self.values
     }
 
-    pub fn values_mut(&mut self) -> &mut [f32] {
-        &mut self.values
+    /// The value one stored unit stands for: 1 for a [`Grid`] of `f32`,
+    /// `max / 65535` for a [`QuantisedGrid`].
+    pub fn step(&self) -> f32 {
+        self.step
+    }
+
+    /// Bytes of the cells on the heap.
+    pub fn heap_bytes(&self) -> usize {
+        self.values.capacity() * std::mem::size_of::<T>()
+    }
+
+    /// The value of cell `k` (row-major index).
+    #[inline]
+    pub fn value(&self, k: usize) -> f32 {
+        self.values[k].to_f32() * self.step
+    }
+
+    /// The values of row `iy`, left to right.
+    pub fn row(&self, iy: usize) -> impl Iterator<Item = f32> + '_ {
+        let step = self.step;
+        self.values[iy * self.width..(iy + 1) * self.width]
+            .iter()
+            .map(move |v| v.to_f32() * step)
+    }
+
+    /// The largest value (0 for an empty grid or one without positive
+    /// values).
+    pub fn max_value(&self) -> f32 {
+        max_value(&self.values) * self.step
     }
 
     /// The value of cell `(ix, iy)`, 0 outside the grid.
     #[inline]
     pub fn cell(&self, ix: i64, iy: i64) -> f32 {
+        self.stored(ix, iy) * self.step
+    }
+
+    /// The stored value of cell `(ix, iy)` in steps, 0 outside the grid.
+    #[inline]
+    fn stored(&self, ix: i64, iy: i64) -> f32 {
         if ix < 0 || iy < 0 || ix >= self.width as i64 || iy >= self.height as i64 {
             0.0
         } else {
-            self.values[iy as usize * self.width + ix as usize]
+            self.values[iy as usize * self.width + ix as usize].to_f32()
         }
     }
 
@@ -122,7 +237,8 @@ impl Grid {
         )
     }
 
-    /// The four neighbouring cell values and the fractional position.
+    /// The four neighbouring stored values (in steps) and the fractional
+    /// position.
     #[inline]
     fn corners(&self, x_m: f64, y_m: f64) -> Option<([f32; 4], f64, f64)> {
         let (gx, gy) = self.lattice(x_m, y_m);
@@ -138,17 +254,17 @@ impl Grid {
         let v = if interior {
             let k = iy as usize * self.width + ix as usize;
             [
-                self.values[k],
-                self.values[k + 1],
-                self.values[k + self.width],
-                self.values[k + self.width + 1],
+                self.values[k].to_f32(),
+                self.values[k + 1].to_f32(),
+                self.values[k + self.width].to_f32(),
+                self.values[k + self.width + 1].to_f32(),
             ]
         } else {
             [
-                self.cell(ix, iy),
-                self.cell(ix + 1, iy),
-                self.cell(ix, iy + 1),
-                self.cell(ix + 1, iy + 1),
+                self.stored(ix, iy),
+                self.stored(ix + 1, iy),
+                self.stored(ix, iy + 1),
+                self.stored(ix + 1, iy + 1),
             ]
         };
         Some((v, gx - fx0, gy - fy0))
@@ -163,7 +279,7 @@ impl Grid {
             Some(([v00, v10, v01, v11], fx, fy)) => {
                 let bottom = f64::from(v00) + fx * f64::from(v10 - v00);
                 let top = f64::from(v01) + fx * f64::from(v11 - v01);
-                bottom + fy * (top - bottom)
+                (bottom + fy * (top - bottom)) * f64::from(self.step)
             }
         }
     }
@@ -215,11 +331,11 @@ impl Grid {
                     .iter_mut()
                     .zip(&self.values[start..start + side])
                 {
-                    *v = f64::from(c);
+                    *v = f64::from(c.to_f32());
                 }
             } else {
                 for (dx, v) in row[..side].iter_mut().enumerate() {
-                    *v = f64::from(self.cell(ix + dx as i64, iy + dy as i64));
+                    *v = f64::from(self.stored(ix + dx as i64, iy + dy as i64));
                 }
             }
             for a in 0..n {
@@ -227,9 +343,10 @@ impl Grid {
                 rows[dy * n + a] = v0 + fx * (v1 - v0);
             }
         }
+        let step = f64::from(self.step);
         for (k, sum) in sums[..n * n].iter_mut().enumerate() {
             let (bottom, top) = (rows[k], rows[k + n]);
-            *sum += bottom + fy * (top - bottom);
+            *sum += (bottom + fy * (top - bottom)) * step;
         }
     }
 
@@ -247,14 +364,17 @@ impl Grid {
                 );
                 let bottom = v00 + fx * (v10 - v00);
                 let top = v01 + fx * (v11 - v01);
-                let value = bottom + fy * (top - bottom);
-                let d_dx = ((1.0 - fy) * (v10 - v00) + fy * (v11 - v01)) / self.cell_size_m;
-                let d_dy = (top - bottom) / self.cell_size_m;
+                let step = f64::from(self.step);
+                let value = (bottom + fy * (top - bottom)) * step;
+                let d_dx = ((1.0 - fy) * (v10 - v00) + fy * (v11 - v01)) * step / self.cell_size_m;
+                let d_dy = (top - bottom) * step / self.cell_size_m;
                 (value, Vector2::new(d_dx, d_dy))
             }
         }
     }
+}
 
+impl Grid {
     /// Smoothing that approximates a Gaussian of standard deviation
     /// `sigma_cells`: `n = round(2σ²)` (at least 1) separable passes of the
     /// binomial filter `[1 2 1] / 4`, whose variance is 1/2 cell² per pass.
@@ -289,6 +409,30 @@ impl Grid {
             }
         }
     }
+}
+
+/// The largest of `values` as `f32`, at least 0 (NaN is ignored). Eight
+/// lanes of running maxima, so the loop vectorises (`f32::max` over one
+/// accumulator is a serial chain).
+pub fn max_value<T: CellValue>(values: &[T]) -> f32 {
+    let mut lanes = [0.0_f32; 8];
+    let chunks = values.chunks_exact(8);
+    let rest = chunks.remainder();
+    for chunk in chunks {
+        for (m, &v) in lanes.iter_mut().zip(chunk) {
+            // `v > m` is false for NaN: NaN never enters.
+            let v = v.to_f32();
+            *m = if v > *m { v } else { *m };
+        }
+    }
+    let mut max = rest.iter().fold(0.0_f32, |m, &v| {
+        let v = v.to_f32();
+        if v > m { v } else { m }
+    });
+    for m in lanes {
+        max = if m > max { m } else { max };
+    }
+    max
 }
 
 /// `dst[x] = (src[x-1] + 2·src[x] + src[x+1]) / 4`, zero outside.
@@ -432,6 +576,53 @@ mod tests {
             assert!((grad.x - dx).abs() < 1e-6, "{} vs {dx}", grad.x);
             assert!((grad.y - dy).abs() < 1e-6, "{} vs {dy}", grad.y);
         }
+    }
+
+    #[test]
+    fn a_quantised_grid_reads_like_its_source_within_half_a_step() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let mut g = Grid::zeros(-1.0, 2.0, 0.2, 40, 30);
+        for v in g.values_mut() {
+            *v = rng.random_range(0.0..0.9);
+        }
+        g.values_mut()[17] = 0.9;
+        let q = g.quantised();
+        assert_eq!((q.width(), q.height(), q.origin_m()), (40, 30, (-1.0, 2.0)));
+        assert!((q.max_value() - 0.9).abs() < 1e-6);
+        // Half a step, and the f32 rounding of a value near the maximum.
+        let half_step = 0.5 * f64::from(q.step()) + 0.9 * f64::from(f32::EPSILON);
+        assert!(q.step() < 0.9 / 65_000.0);
+        for k in 0..g.values().len() {
+            assert!((f64::from(q.value(k)) - f64::from(g.value(k))).abs() <= half_step);
+        }
+        for _ in 0..500 {
+            let (x, y) = (rng.random_range(-2.0..8.0), rng.random_range(1.0..9.0));
+            // Bilinear weights sum to at most 1: the error stays within half a step.
+            assert!((q.bilinear(x, y) - g.bilinear(x, y)).abs() <= half_step);
+            let (_, gq) = q.bilinear_with_gradient(x, y);
+            let (_, gg) = g.bilinear_with_gradient(x, y);
+            // Differences of two cells over one cell size.
+            assert!((gq - gg).amax() <= 2.0 * half_step / 0.2);
+            let (mut a, mut b) = (vec![0.0; 25], vec![0.0; 25]);
+            q.add_bilinear_shifts(x, y, 2, &mut a);
+            g.add_bilinear_shifts(x, y, 2, &mut b);
+            for (a, b) in a.iter().zip(&b) {
+                assert!((a - b).abs() <= half_step);
+            }
+        }
+    }
+
+    #[test]
+    fn quantising_keeps_zeros_and_drops_what_is_not_an_intensity() {
+        let mut g = Grid::zeros(0.0, 0.0, 1.0, 4, 1);
+        g.values_mut().copy_from_slice(&[-1.0, f32::NAN, 0.0, 2.0]);
+        let q = g.quantised();
+        assert_eq!(q.values(), &[0, 0, 0, u16::MAX]);
+        assert_eq!(q.value(3), 2.0);
+        let empty = Grid::zeros(0.0, 0.0, 1.0, 3, 3).quantised();
+        assert_eq!((empty.step(), empty.max_value()), (0.0, 0.0));
+        assert_eq!(empty.bilinear(1.2, 1.7), 0.0);
     }
 
     #[test]

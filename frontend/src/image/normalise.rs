@@ -84,8 +84,61 @@ fn first_unmasked_bin(beam: &SonarBeam, blind_zone_m: f64) -> usize {
     if k <= 0.0 { 0 } else { k as usize }
 }
 
+/// Normalised intensities one byte per bin: bin `i` of beam `j` is
+/// `value(beam(j)[i])`. Every normalised value is a function of a `u8`
+/// difference to the background (step 2 of the module doc), so the byte
+/// and a 256-entry table hold it exactly, in a quarter of the memory of
+/// [`Profiles`] of `f32`: the form an image keeps for the whole mission
+/// ([`super::PolarSamples`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct CodedProfiles {
+    codes: Profiles<u8>,
+    table: Box<[f32; 256]>,
+}
+
+impl CodedProfiles {
+    /// The codes of beam `j`'s bins.
+    pub fn beam(&self, j: usize) -> &[u8] {
+        self.codes.beam(j)
+    }
+
+    /// The normalised value of `code`.
+    #[inline]
+    pub fn value(&self, code: u8) -> f32 {
+        self.table[usize::from(code)]
+    }
+
+    pub fn len(&self) -> usize {
+        self.codes.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.codes.is_empty()
+    }
+
+    /// Bytes on the heap: codes, beam offsets and the table.
+    pub fn heap_bytes(&self) -> usize {
+        self.codes.values.capacity()
+            + self.codes.offsets.capacity() * std::mem::size_of::<usize>()
+            + std::mem::size_of::<[f32; 256]>()
+    }
+
+    /// The values as `f32` profiles.
+    pub fn decoded(&self) -> Profiles {
+        Profiles {
+            offsets: self.codes.offsets.clone(),
+            values: self.codes.values.iter().map(|&c| self.value(c)).collect(),
+        }
+    }
+}
+
 /// Applies steps 1-3 of the module doc to every beam.
 pub fn normalise_beams(beams: &[SonarBeam], config: &ImageConfig) -> Profiles {
+    normalise_beams_coded(beams, config).decoded()
+}
+
+/// [`normalise_beams`], one byte per bin ([`CodedProfiles`]).
+pub fn normalise_beams_coded(beams: &[SonarBeam], config: &ImageConfig) -> CodedProfiles {
     // Steps 0-1: the smoothed, masked raw values of every kept bin, flat.
     let mut offsets = Vec::with_capacity(beams.len() + 1);
     offsets.push(0);
@@ -159,18 +212,21 @@ pub fn normalise_beams(beams: &[SonarBeam], config: &ImageConfig) -> Profiles {
     if scale == 0 {
         scale = hist.iter().rposition(|&c| c > 0).unwrap_or(0) as u8;
     }
-    let values = if scale == 0 {
-        vec![0.0; diffs.len()]
-    } else {
-        // One table lookup per sample: d is a u8.
+    let mut table = Box::new([0.0_f32; 256]);
+    if scale > 0 {
         let inv = 1.0 / f64::from(scale);
         let gamma = config.intensity_exponent;
-        let table: Vec<f32> = (0..=255u8)
-            .map(|d| (f64::from(d) * inv).min(1.0).powf(gamma) as f32)
-            .collect();
-        diffs.iter().map(|&d| table[usize::from(d)]).collect()
-    };
-    Profiles { offsets, values }
+        for (d, v) in table.iter_mut().enumerate() {
+            *v = (d as f64 * inv).min(1.0).powf(gamma) as f32;
+        }
+    }
+    CodedProfiles {
+        codes: Profiles {
+            offsets,
+            values: diffs,
+        },
+        table,
+    }
 }
 
 /// The moving average of the segmentation, rounded to u8 as the image

@@ -25,7 +25,7 @@
 //! `max_wedge_rad` stay empty except within `w` of a beam.
 
 use super::grid::floor;
-use super::normalise::Profiles;
+use super::normalise::CodedProfiles;
 use super::{ImageConfig, Interpolation};
 use crate::sensors::SonarBeam;
 use echofield_graph::{Se2, wrap_angle};
@@ -58,7 +58,7 @@ struct Layer {
 #[derive(Clone, Debug)]
 pub struct PolarSamples {
     beams: Vec<Beam>,
-    profiles: Profiles,
+    profiles: CodedProfiles,
     /// Unwrapped bearing of each beam, acquisition order.
     bearings: Vec<f64>,
     layers: Vec<Layer>,
@@ -81,7 +81,7 @@ impl PolarSamples {
     pub fn new(
         beams: &[SonarBeam],
         reference_from_beams: &[Se2],
-        profiles: Profiles,
+        profiles: CodedProfiles,
         config: &ImageConfig,
     ) -> Self {
         let geometry: Vec<Beam> = beams
@@ -278,6 +278,16 @@ impl PolarSamples {
         (v, Vector2::new(gx, gy))
     }
 
+    /// Bytes this holds on the heap: the beams' geometry, bearings and
+    /// layers, and the coded samples.
+    pub fn heap_bytes(&self) -> usize {
+        use std::mem::size_of;
+        self.beams.capacity() * size_of::<Beam>()
+            + self.bearings.capacity() * size_of::<f64>()
+            + self.layers.capacity() * size_of::<Layer>()
+            + self.profiles.heap_bytes()
+    }
+
     /// Smallest bin size of the rotation, metres.
     pub fn finest_bin_m(&self) -> f64 {
         self.beams
@@ -302,7 +312,7 @@ impl PolarSamples {
         let f = t - i0;
         let at = |i: f64| -> f64 {
             if i >= 0.0 && (i as usize) < profile.len() {
-                f64::from(profile[i as usize])
+                f64::from(self.profiles.value(profile[i as usize]))
             } else {
                 0.0
             }
@@ -314,7 +324,7 @@ impl PolarSamples {
         let profile = self.profiles.beam(j);
         let i = Self::sample_position(beam, r).round();
         if i >= 0.0 && (i as usize) < profile.len() {
-            f64::from(profile[i as usize])
+            f64::from(self.profiles.value(profile[i as usize]))
         } else {
             0.0
         }
@@ -378,7 +388,7 @@ fn layers(bearings: &[f64], max_span_rad: f64) -> Vec<Layer> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::image::normalise::normalise_beams;
+    use crate::image::normalise::normalise_beams_coded;
 
     fn config(interpolation: Interpolation) -> ImageConfig {
         ImageConfig {
@@ -417,8 +427,8 @@ mod tests {
         for interpolation in [Interpolation::AngularWindow, Interpolation::Nearest] {
             let (beams, poses) = fan(0.0);
             let cfg = config(interpolation);
-            let profiles = normalise_beams(&beams, &cfg);
-            let expected = |k: usize, i: usize| f64::from(profiles.beam(k)[i]);
+            let profiles = normalise_beams_coded(&beams, &cfg);
+            let expected = |k: usize, i: usize| f64::from(profiles.value(profiles.beam(k)[i]));
             let polar = PolarSamples::new(&beams, &poses, profiles.clone(), &cfg);
             // Beam 5 points along +x: sample 39 sits at 4.0 m.
             assert!((polar.value_at(4.0, 0.0) - expected(5, 39)).abs() < 1e-6);
@@ -523,7 +533,7 @@ mod tests {
             range_smoothing_bins: 1,
             ..ImageConfig::default()
         };
-        let profiles = normalise_beams(&rotation.beams, &cfg);
+        let profiles = normalise_beams_coded(&rotation.beams, &cfg);
         let polar = PolarSamples::new(
             &rotation.beams,
             &rotation.reference_from_beams,
@@ -575,9 +585,9 @@ mod tests {
         // Every beam's transducer 0.5 m further along y than the previous.
         let (beams, poses) = fan(0.5);
         let cfg = config(Interpolation::AngularWindow);
-        let profiles = normalise_beams(&beams, &cfg);
+        let profiles = normalise_beams_coded(&beams, &cfg);
         let on_beam_3 = poses[3].transform_xy(6.0, 0.0);
-        let expected = f64::from(profiles.beam(3)[59]);
+        let expected = f64::from(profiles.value(profiles.beam(3)[59]));
         let polar = PolarSamples::new(&beams, &poses, profiles, &cfg);
         assert!((polar.value_at(on_beam_3.0, on_beam_3.1) - expected).abs() < 1e-6);
         let (v, g) = polar.value_and_gradient(on_beam_3.0 + 0.03, on_beam_3.1, 1e-3);

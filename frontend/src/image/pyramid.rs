@@ -23,9 +23,11 @@
 //! ones, which only searches over windows wider than `2^EAGER_LEVELS`
 //! cells use (first contacts with a place seen long ago), on first use.
 //! On the St Pere replay no search needs them, which saves two of the
-//! eleven bytes per cell an image holds (f32 raster and seven levels).
+//! thirteen bytes per cell an image would hold (`f32` raster, `u16`
+//! pose-fit raster and seven levels; see
+//! [`AcousticImage::heap_bytes`](super::AcousticImage::heap_bytes)).
 
-use super::grid::Grid;
+use super::grid::{CellValue, Grid, max_value};
 use std::sync::OnceLock;
 
 /// Levels built with the pyramid; the rest are built when first read.
@@ -92,9 +94,10 @@ pub struct Pyramid {
 
 impl Pyramid {
     /// Levels `1..=levels` of `grid`.
-    pub fn build(grid: &Grid, levels: usize) -> Self {
+    pub fn build<T: CellValue>(grid: &Grid<T>, levels: usize) -> Self {
         let (width, height) = (grid.width(), grid.height());
-        let max = max_value(grid.values());
+        let step = grid.step();
+        let max = max_value(grid.values()) * step;
         // A hair below 255 / max, so that 255 / scale ≥ max survives f32
         // rounding and the largest value's bound stays an upper bound.
         let scale = if max > 0.0 {
@@ -109,7 +112,11 @@ impl Pyramid {
                 max_value: max,
             };
         }
-        let quantised: Vec<u8> = grid.values().iter().map(|&v| quantise(v, scale)).collect();
+        let quantised: Vec<u8> = grid
+            .values()
+            .iter()
+            .map(|&v| quantise(v.to_f32() * step, scale))
+            .collect();
         let levels: Vec<OnceLock<PyramidLevel>> = (0..levels).map(|_| OnceLock::new()).collect();
         // Level 1: windows of 3 cells, as two overlapping windows of 2.
         let pairs = dilate(&quantised, width, height, 1);
@@ -155,6 +162,15 @@ impl Pyramid {
         })
     }
 
+    /// Bytes of the levels built so far on the heap.
+    pub fn heap_bytes(&self) -> usize {
+        self.levels
+            .iter()
+            .filter_map(|l| l.get())
+            .map(|l| l.values.capacity())
+            .sum()
+    }
+
     /// Levels built so far (eager ones and those read since).
     pub fn built_levels(&self) -> usize {
         self.levels.iter().filter(|l| l.get().is_some()).count()
@@ -182,26 +198,6 @@ impl PartialEq for Pyramid {
             && self.len() == other.len()
             && (1..=self.len()).all(|h| self.level(h) == other.level(h))
     }
-}
-
-/// The largest value of `values`, at least 0 (NaN is ignored). Eight
-/// lanes of running maxima, so the loop vectorises (`f32::max` over one
-/// accumulator is a serial chain).
-fn max_value(values: &[f32]) -> f32 {
-    let mut lanes = [0.0_f32; 8];
-    let chunks = values.chunks_exact(8);
-    let rest = chunks.remainder();
-    for chunk in chunks {
-        for (m, &v) in lanes.iter_mut().zip(chunk) {
-            // `v > m` is false for NaN: NaN never enters.
-            *m = if v > *m { v } else { *m };
-        }
-    }
-    let mut max = rest.iter().fold(0.0_f32, |m, &v| if v > m { v } else { m });
-    for m in lanes {
-        max = if m > max { m } else { max };
-    }
-    max
 }
 
 /// The smallest `q` with `q / scale ≥ v` (0 for `v ≤ 0` and NaN, 255 at

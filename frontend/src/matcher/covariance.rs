@@ -16,7 +16,7 @@
 //! lattice-normalised coordinates (each axis divided by its step), where
 //! metres and radians are commensurable.
 
-use crate::image::Grid;
+use crate::image::{CellValue, Grid};
 use echofield_graph::Se2;
 use nalgebra::{Matrix3, Point2, SMatrix, SVector, Vector3};
 
@@ -49,9 +49,9 @@ pub struct SurfaceFit {
 /// scale. Because the translation steps are whole cells, the scores of one
 /// angle share every point's fractional cell position
 /// ([`Grid::add_bilinear_shifts`](crate::image::Grid::add_bilinear_shifts)).
-pub fn fit_surface(
+pub fn fit_surface<T: CellValue>(
     points: &[Point2<f64>],
-    grid: &Grid,
+    grid: &Grid<T>,
     pose: &Se2,
     angle_step_rad: f64,
     radius: usize,
@@ -184,11 +184,12 @@ fn features(u: &Vector3<f64>) -> SVector<f64, 10> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::image::AcousticImage;
 
-    /// An image whose value is a known quadratic of x and y near the origin
+    /// A raster whose value is a known quadratic of x and y near the origin
     /// (a paraboloid), so the score of a one-point scan is known exactly.
-    fn paraboloid(ax: f64, ay: f64) -> AcousticImage {
+    /// In `f32`: an image's quantised raster would blur the curvature by
+    /// its rounding, which this test is not about.
+    fn paraboloid(ax: f64, ay: f64) -> Grid {
         let n = 200;
         let mut grid = Grid::zeros(-10.0, -10.0, 0.1, n, n);
         for iy in 0..n as i64 {
@@ -198,19 +199,19 @@ mod tests {
                 grid.values_mut()[iy as usize * n + ix as usize] = v.max(0.0) as f32;
             }
         }
-        AcousticImage::from_grid(grid, 2)
+        grid
     }
 
     #[test]
     fn recovers_the_curvature_of_a_paraboloid() {
         // One point at the scan origin: s(x) = 1 - 0.5 x² - 2 y², flat in θ.
-        let image = paraboloid(0.5, 2.0);
+        let grid = paraboloid(0.5, 2.0);
         let points = [Point2::new(0.0, 0.0)];
         // Sample on cell centres so bilinear interpolation is exact.
         let pose = Se2::new(-0.05, -0.05, 0.0);
         let steps = Vector3::new(0.1, 0.1, 0.01);
         let window = Vector3::new(1.0, 1.0, 0.1);
-        let fit = fit_surface(&points, image.grid(), &pose, steps.z, 2, &window, 0.5);
+        let fit = fit_surface(&points, &grid, &pose, steps.z, 2, &window, 0.5);
         assert!((fit.hessian[(0, 0)] + 1.0).abs() < 1e-4, "{}", fit.hessian);
         assert!((fit.hessian[(1, 1)] + 4.0).abs() < 1e-4, "{}", fit.hessian);
         assert!(fit.hessian[(0, 1)].abs() < 1e-4);
