@@ -174,14 +174,6 @@ impl<T: CellValue> Grid<T> {
         self.values[k].to_f32() * self.step
     }
 
-    /// The values of row `iy`, left to right.
-    pub fn row(&self, iy: usize) -> impl Iterator<Item = f32> + '_ {
-        let step = self.step;
-        self.values[iy * self.width..(iy + 1) * self.width]
-            .iter()
-            .map(move |v| v.to_f32() * step)
-    }
-
     /// The largest value (0 for an empty grid or one without positive
     /// values).
     pub fn max_value(&self) -> f32 {
