@@ -108,14 +108,6 @@ impl CodedProfiles {
         self.table[usize::from(code)]
     }
 
-    pub fn len(&self) -> usize {
-        self.codes.len()
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.codes.is_empty()
-    }
-
     /// Bytes on the heap: codes, beam offsets and the table.
     pub fn heap_bytes(&self) -> usize {
         self.codes.values.capacity()

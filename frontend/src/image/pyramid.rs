@@ -27,7 +27,7 @@
 //! pose-fit raster and seven levels; see
 //! [`AcousticImage::heap_bytes`](super::AcousticImage::heap_bytes)).
 
-use super::grid::{CellValue, Grid, max_value};
+use super::grid::{Grid, max_value};
 use std::sync::OnceLock;
 
 /// Levels built with the pyramid; the rest are built when first read.
@@ -94,10 +94,9 @@ pub struct Pyramid {
 
 impl Pyramid {
     /// Levels `1..=levels` of `grid`.
-    pub fn build<T: CellValue>(grid: &Grid<T>, levels: usize) -> Self {
+    pub fn build(grid: &Grid, levels: usize) -> Self {
         let (width, height) = (grid.width(), grid.height());
-        let step = grid.step();
-        let max = max_value(grid.values()) * step;
+        let max = max_value(grid.values());
         // A hair below 255 / max, so that 255 / scale ≥ max survives f32
         // rounding and the largest value's bound stays an upper bound.
         let scale = if max > 0.0 {
@@ -112,11 +111,7 @@ impl Pyramid {
                 max_value: max,
             };
         }
-        let quantised: Vec<u8> = grid
-            .values()
-            .iter()
-            .map(|&v| quantise(v.to_f32() * step, scale))
-            .collect();
+        let quantised: Vec<u8> = grid.values().iter().map(|&v| quantise(v, scale)).collect();
         let levels: Vec<OnceLock<PyramidLevel>> = (0..levels).map(|_| OnceLock::new()).collect();
         // Level 1: windows of 3 cells, as two overlapping windows of 2.
         let pairs = dilate(&quantised, width, height, 1);
