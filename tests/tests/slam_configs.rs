@@ -4,6 +4,7 @@
 //! unknown keys or bad values are errors naming them.
 
 use echofield::slam::{SlamConfig, SlamError};
+use echofield_backend::RobustKernel;
 use std::path::PathBuf;
 
 fn configs_dir() -> PathBuf {
@@ -94,4 +95,57 @@ fn bad_values_are_errors_naming_the_field() {
         assert!(matches!(err, SlamError::Config { .. }), "{err}");
         assert!(err.to_string().contains(field), "{text:?}: {err}");
     }
+}
+
+/// A file that sets some keys of a section leaves the others at the
+/// pipeline's defaults, also where those differ from the defaults of the
+/// section's type (the matcher's refinement and second peak, the two
+/// off-axis margins, the loop edges' robust kernel): each file below gives
+/// the default config with exactly one value changed.
+#[test]
+fn partly_set_sections_keep_the_pipelines_other_defaults() {
+    let defaults = SlamConfig::default();
+    let changed = |edit: &dyn Fn(&mut SlamConfig)| {
+        let mut c = SlamConfig::default();
+        edit(&mut c);
+        c
+    };
+    let cases: Vec<(&str, SlamConfig)> = vec![
+        (
+            "[matcher]\ncovariance_scale = 0.5\n",
+            changed(&|c| c.matcher.covariance_scale = 0.5),
+        ),
+        (
+            "[image.off_axis]\nmax_range_difference_m = 0.5\n",
+            changed(&|c| c.image.off_axis.max_range_difference_m = 0.5),
+        ),
+        (
+            "[segmentation.off_axis]\nmax_range_difference_m = 0.5\n",
+            changed(&|c| c.segmentation.off_axis.max_range_difference_m = 0.5),
+        ),
+        (
+            "[backend.solver]\nmax_iterations = 7\n",
+            changed(&|c| c.backend.solver.max_iterations = 7),
+        ),
+        (
+            "[backend.solver.robust.odometry]\nkind = \"huber\"\ndelta = 1.0\n",
+            changed(&|c| c.backend.solver.robust.odometry = RobustKernel::Huber { delta: 1.0 }),
+        ),
+    ];
+    for (text, expected) in cases {
+        let parsed = SlamConfig::from_toml_str(text).unwrap_or_else(|e| panic!("{text:?}: {e}"));
+        assert_ne!(expected, defaults, "{text:?} changes nothing");
+        assert_eq!(parsed, expected, "{text:?}");
+    }
+    // The pipeline's defaults these cases rely on differ from the types'.
+    assert_eq!(defaults.matcher.refine_iterations, 0);
+    assert!(!defaults.matcher.second_peak);
+    assert_ne!(
+        defaults.image.off_axis.margin,
+        defaults.segmentation.off_axis.margin
+    );
+    assert_ne!(
+        defaults.backend.solver.robust.loop_closure,
+        RobustKernel::None
+    );
 }

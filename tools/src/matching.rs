@@ -70,12 +70,14 @@ pub struct MatchingConfig {
 }
 
 impl MatchingConfig {
-    /// Reads a TOML file; unknown keys are errors naming the key.
+    /// Reads a TOML file laid over the defaults
+    /// ([`crate::config_file::from_toml_over`]: a section set in part keeps
+    /// its other defaults); unknown keys are errors naming the key.
     pub fn from_toml_file(path: &Path) -> Result<Self> {
         let text = std::fs::read_to_string(path)
             .with_context(|| format!("cannot read config {}", path.display()))?;
-        let config: Self =
-            toml::from_str(&text).with_context(|| format!("in config {}", path.display()))?;
+        let config = crate::config_file::from_toml_over(&text, &Self::default())
+            .with_context(|| format!("in config {}", path.display()))?;
         config
             .validate()
             .with_context(|| format!("in config {}", path.display()))?;
@@ -377,6 +379,7 @@ pub fn ground_truth_at(samples: &[GroundTruthPose], stamp_s: f64) -> Option<Se2>
 #[cfg(test)]
 mod tests {
     use super::*;
+    use echofield_frontend::off_axis::OffAxisSuppression;
 
     #[test]
     fn ground_truth_is_interpolated_on_the_short_arc() {
@@ -409,13 +412,20 @@ mod tests {
 
     #[test]
     fn config_parses_partial_toml_and_rejects_unknown_keys() {
-        let cfg: MatchingConfig =
-            toml::from_str("[image]\ncell_size_m = 0.1\n[window]\nn_sigma = 2.0\n").unwrap();
+        let parse =
+            |text: &str| crate::config_file::from_toml_over(text, &MatchingConfig::default());
+        let cfg = parse("[image]\ncell_size_m = 0.1\n[window]\nn_sigma = 2.0\n").unwrap();
         assert_eq!(cfg.image.cell_size_m, Some(0.1));
         assert_eq!(cfg.window.n_sigma, 2.0);
         assert_eq!(cfg.matcher, MatcherConfig::default());
-        let err = toml::from_str::<MatchingConfig>("[image]\ncell_size = 0.1\n").unwrap_err();
-        assert!(err.to_string().contains("cell_size"), "{err}");
+        // A section set in part keeps its other defaults: the image's
+        // off-axis margin is not its type's.
+        let cfg = parse("[image.off_axis]\nenabled = false\n").unwrap();
+        let expected = ImageConfig::default().off_axis;
+        assert_eq!(cfg.image.off_axis.margin, expected.margin);
+        assert_ne!(expected.margin, OffAxisSuppression::default().margin);
+        let err = parse("[image]\ncell_size = 0.1\n").unwrap_err();
+        assert_eq!(err.path, "image.cell_size");
         MatchingConfig::default().validate().unwrap();
     }
 }

@@ -87,7 +87,8 @@ pub fn run(args: Args) -> Result<()> {
 fn read_config(path: &Path) -> Result<SimConfig> {
     let text =
         std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
-    toml::from_str(&text).with_context(|| format!("invalid simulator config {}", path.display()))
+    echofield::config_file::from_toml_over(&text, &SimConfig::default())
+        .with_context(|| format!("invalid simulator config {}", path.display()))
 }
 
 /// `dir/mission.mcap` -> `dir/mission.sim.toml`.

@@ -1,8 +1,12 @@
 //! The configuration of a SLAM run: one TOML section per stage.
 //!
-//! Every section is `#[serde(default, deny_unknown_fields)]`: missing keys
-//! take the documented defaults, an unknown key at any depth is an error
-//! that names its full path (`loops.min_separaton_nodes`). The frontend and
+//! A file is laid over [`SlamConfig::default`]
+//! ([`crate::config_file::from_toml_over`]): every key it leaves out keeps
+//! the pipeline's default, also inside a section it partly sets (a
+//! `[matcher]` with one key keeps the pipeline's `refine_iterations = 0`,
+//! not the matcher type's 100). Every section is `deny_unknown_fields`:
+//! an unknown key at any depth is an error that names its full path
+//! (`loops.min_separaton_nodes`). The frontend and
 //! backend sections are those crates' own config structs; the sections
 //! that belong to the pipeline itself (sequential matching, loop closures,
 //! incremental optimisation, evaluation) are defined here and in
@@ -86,15 +90,12 @@ impl Default for SlamConfig {
 }
 
 impl SlamConfig {
-    /// Parses TOML; an unknown key is an error naming its path, an invalid
-    /// value an error naming its field.
+    /// Parses TOML laid over the defaults (see the module doc); an unknown
+    /// key is an error naming its path, an invalid value an error naming
+    /// its field.
     pub fn from_toml_str(text: &str) -> Result<Self, SlamError> {
-        let deserializer = toml::Deserializer::parse(text)
-            .map_err(|e| SlamError::config("(document)", e.to_string()))?;
-        let config: Self = serde_path_to_error::deserialize(deserializer).map_err(|e| {
-            let path = e.path().to_string();
-            SlamError::config(path, e.into_inner().to_string().trim_end().to_string())
-        })?;
+        let config = crate::config_file::from_toml_over(text, &Self::default())
+            .map_err(|e| SlamError::config(e.path, e.message))?;
         config.validate()?;
         Ok(config)
     }
