@@ -71,7 +71,7 @@ pub struct YawRateCheck {
 }
 
 /// Compares headings and yaw rates over windows of `window_s` seconds.
-/// `None` when fewer than [`MIN_WINDOWS`] windows (of one sample and of
+/// `None` when fewer than `MIN_WINDOWS` (20) windows (of one sample and of
 /// `window_s`) have a yaw rate at every sample and no gap, e.g. a unit
 /// without yaw rates. `attitude` is in time order (checked by the filter).
 pub fn check(attitude: &[Attitude], window_s: f64) -> Option<YawRateCheck> {

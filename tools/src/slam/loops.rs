@@ -204,7 +204,7 @@ impl<'a> LoopCloser<'a> {
 
     /// The densification pass after the mission (`LoopConfig::densify`):
     /// every pair at least `min_separation_nodes` apart that was never
-    /// examined or that [`retried_pairs`](Self::retried_pairs) lists, whose
+    /// examined or that `retried_pairs` lists, whose
     /// predicted overlap at the current estimate is at
     /// least `densify_min_predicted_overlap` and whose search window
     /// (`n_sigma` of the relative uncertainty) fits within
