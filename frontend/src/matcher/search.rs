@@ -21,7 +21,13 @@
 //! as many on a ±5 m, ±20° window). The roots are one node per angle and
 //! top-level block; points whose cells stay inside the grid for every
 //! offset of the window are kept as flat indices, so a node costs one
-//! byte load per point.
+//! byte load per point. An expanded node's four children are bounded in
+//! one pass over the points (one 3 x 3 patch per point for four leaves
+//! instead of four 2 x 2 ones), with the same sums in the same order as
+//! one at a time, so results are unchanged bit for bit. Measured with
+//! `cargo bench -p echofield-frontend --bench matcher -- match_scan`
+//! (medians of two interleaved runs): the pipeline's 0.5 m / 3° window
+//! 0.238 → 0.190 ms, 1 m / 10° 3.08 → 2.90 ms, 5 m / 20° 7.62 → 6.51 ms.
 //!
 //! The second search for the best *separated* peak resumes from the nodes
 //! the first one left open, skipping nodes lying entirely within
@@ -205,6 +211,59 @@ impl<'a> SearchProblem<'a> {
         sum as f32 / pyramid.scale()
     }
 
+    /// The bounds of the four nodes `(dx0 + a·2^level, dy0 + b·2^level)`,
+    /// `a, b ∈ {0, 1}` (the children of a node at `level + 1`), in the
+    /// order `(0, 0), (1, 0), (0, 1), (1, 1)`: each equal to
+    /// [`SearchProblem::bound`] of that node (the same sums in the same
+    /// order), with the table read once and, for leaves, one 3 × 3 patch
+    /// of cells per point instead of four 2 × 2 ones. All four must lie in
+    /// the window.
+    fn child_bounds(&self, level: usize, angle: i32, dx0: i32, dy0: i32) -> [f32; 4] {
+        let table = self.table((angle + self.disc.angle_steps) as usize);
+        let (inside, edge) = (&table.inside[..], &table.edge[..]);
+        let step = 1i32 << level;
+        let children = [(0, 0), (step, 0), (0, step), (step, step)];
+        if level == 0 {
+            let grid = self.image.grid();
+            let (values, width) = (grid.values(), grid.width());
+            let offset = dy0 as isize * width as isize + dx0 as isize;
+            let mut sums = [0.0_f32; 4];
+            for &(k, fx, fy) in inside {
+                let k = (k as isize + offset) as usize;
+                let r0 = &values[k..k + 3];
+                let r1 = &values[k + width..k + width + 3];
+                let r2 = &values[k + 2 * width..k + 2 * width + 3];
+                sums[0] += bilinear([r0[0], r0[1], r1[0], r1[1]], fx, fy);
+                sums[1] += bilinear([r0[1], r0[2], r1[1], r1[2]], fx, fy);
+                sums[2] += bilinear([r1[0], r1[1], r2[0], r2[1]], fx, fy);
+                sums[3] += bilinear([r1[1], r1[2], r2[1], r2[2]], fx, fy);
+            }
+            for (sum, (ox, oy)) in sums.iter_mut().zip(children) {
+                *sum = add_edge_leaf_score(*sum, grid, edge, dx0 + ox, dy0 + oy);
+            }
+            return sums;
+        }
+        let pyramid = self.image.pyramid();
+        let l = pyramid.level(level);
+        let (values, width) = (l.values(), l.width() as isize);
+        let base = dy0 as isize * width + dx0 as isize;
+        let s = step as isize;
+        let offsets = [base, base + s, base + s * width, base + s * width + s];
+        let mut sums = [0u32; 4];
+        for &(k, _, _) in inside {
+            let k = k as isize;
+            for (sum, o) in sums.iter_mut().zip(offsets) {
+                *sum += u32::from(values[(k + o) as usize]);
+            }
+        }
+        for &(cx, cy, _, _) in edge {
+            for (sum, (ox, oy)) in sums.iter_mut().zip(children) {
+                *sum += u32::from(l.get(i64::from(cx + dx0 + ox), i64::from(cy + dy0 + oy)));
+            }
+        }
+        sums.map(|sum| sum as f32 / pyramid.scale())
+    }
+
     /// `Σ_i I(c_i + d + f_i)`: bilinear, cells outside the grid are 0.
     fn leaf_score(
         &self,
@@ -216,11 +275,6 @@ impl<'a> SearchProblem<'a> {
         let grid = self.image.grid();
         let (values, width) = (grid.values(), grid.width());
         let offset = dy as isize * width as isize + dx as isize;
-        let bilinear = |[v00, v10, v01, v11]: [f32; 4], fx: f32, fy: f32| {
-            let bottom = v00 + fx * (v10 - v00);
-            let top = v01 + fx * (v11 - v01);
-            bottom + fy * (top - bottom)
-        };
         let mut sum = 0.0_f32;
         for &(k, fx, fy) in inside {
             let k = (k as isize + offset) as usize;
@@ -228,16 +282,7 @@ impl<'a> SearchProblem<'a> {
             let above = &values[k + width..k + width + 2];
             sum += bilinear([below[0], below[1], above[0], above[1]], fx, fy);
         }
-        for &(cx, cy, fx, fy) in edge {
-            let (x, y) = (i64::from(cx + dx), i64::from(cy + dy));
-            let at = |x: i64, y: i64| grid.cell(x, y);
-            sum += bilinear(
-                [at(x, y), at(x + 1, y), at(x, y + 1), at(x + 1, y + 1)],
-                fx,
-                fy,
-            );
-        }
-        sum
+        add_edge_leaf_score(sum, grid, edge, dx, dy)
     }
 
     /// Branch-and-bound for the best leaf outside `exclusion`; `None` when
@@ -370,11 +415,37 @@ impl<'a> SearchProblem<'a> {
             if level == 0 {
                 return Some(node); // beats every bound still open
             }
-            let half = 1i32 << (level - 1);
-            for (ox, oy) in [(0, 0), (half, 0), (0, half), (half, half)] {
-                let (dx0, dy0) = (node.dx + ox, node.dy + oy);
-                if dx0 <= d.cells_x && dy0 <= d.cells_y {
-                    self.push(level - 1, node.angle, dx0, dy0, exclusion, stats, open);
+            let child = level - 1;
+            let half = 1i32 << child;
+            let blocks = [(0, 0), (half, 0), (0, half), (half, half)]
+                .map(|(ox, oy)| (node.dx + ox, node.dy + oy));
+            let open_child = |&(dx0, dy0): &(i32, i32)| {
+                dx0 <= d.cells_x
+                    && dy0 <= d.cells_y
+                    && !exclusion.is_some_and(|e| {
+                        e.angle_excluded(node.angle) && e.block_excluded(dx0, dy0, half)
+                    })
+            };
+            if blocks.iter().all(open_child) {
+                // The usual case: all four bounds in one pass over the points.
+                let bounds = self.child_bounds(child, node.angle, node.dx, node.dy);
+                stats.nodes += 4;
+                for (&(dx, dy), score) in blocks.iter().zip(bounds) {
+                    let node = Leaf {
+                        angle: node.angle,
+                        dx,
+                        dy,
+                        score,
+                    };
+                    if score > 0.0 {
+                        open.push(Open { node, level: child });
+                    }
+                }
+            } else {
+                for &(dx0, dy0) in &blocks {
+                    if dx0 <= d.cells_x && dy0 <= d.cells_y {
+                        self.push(child, node.angle, dx0, dy0, exclusion, stats, open);
+                    }
                 }
             }
         }
@@ -411,6 +482,36 @@ impl<'a> SearchProblem<'a> {
             open.push(Open { node, level });
         }
     }
+}
+
+/// Bilinear interpolation between the cells `[v00, v10, v01, v11]` at the
+/// fraction `(fx, fy)`.
+#[inline]
+fn bilinear([v00, v10, v01, v11]: [f32; 4], fx: f32, fy: f32) -> f32 {
+    let bottom = v00 + fx * (v10 - v00);
+    let top = v01 + fx * (v11 - v01);
+    bottom + fy * (top - bottom)
+}
+
+/// `sum` plus the edge points' part of a leaf's score, added point by
+/// point (cells outside the grid are 0).
+fn add_edge_leaf_score(
+    mut sum: f32,
+    grid: &crate::image::Grid,
+    edge: &[(i32, i32, f32, f32)],
+    dx: i32,
+    dy: i32,
+) -> f32 {
+    for &(cx, cy, fx, fy) in edge {
+        let (x, y) = (i64::from(cx + dx), i64::from(cy + dy));
+        let at = |x: i64, y: i64| grid.cell(x, y);
+        sum += bilinear(
+            [at(x, y), at(x + 1, y), at(x, y + 1), at(x + 1, y + 1)],
+            fx,
+            fy,
+        );
+    }
+    sum
 }
 
 /// An open node of the best-first search, ordered by its bound; among
@@ -519,6 +620,51 @@ mod tests {
                         let (a, x, y) = (top.angle + da, top.dx + dx, top.dy + dy);
                         if a.abs() <= 3 && x.abs() <= 7 && y.abs() <= 5 {
                             assert!(problem.bound(0, a, x, y) <= top.score, "trial {trial}");
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// The four children's bounds read in one pass equal the bounds read
+    /// one by one, bit for bit, at every level and for points inside the
+    /// grid as well as at its edge.
+    #[test]
+    fn child_bounds_equal_the_single_bounds() {
+        let mut rng = ChaCha8Rng::seed_from_u64(6);
+        let disc = Discretisation {
+            angle_step_rad: 0.03,
+            angle_steps: 2,
+            cells_x: 12,
+            cells_y: 9,
+        };
+        for trial in 0..4 {
+            let (image, points) = random_image_and_scan(&mut rng, 0.4);
+            let prior = Se2::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                0.2,
+            );
+            let problem = SearchProblem::new(&points, &image, &prior, &disc);
+            let table = problem.table(disc.angle_steps as usize + 1);
+            assert!(
+                !table.inside.is_empty() && !table.edge.is_empty(),
+                "trial {trial}: both kinds of points"
+            );
+            for level in 0..problem.top_level {
+                let step = 1i32 << level;
+                for angle in -2..=2 {
+                    for dx0 in -disc.cells_x..=disc.cells_x - step {
+                        for dy0 in -disc.cells_y..=disc.cells_y - step {
+                            let four = problem.child_bounds(level, angle, dx0, dy0);
+                            let one = [(0, 0), (step, 0), (0, step), (step, step)]
+                                .map(|(ox, oy)| problem.bound(level, angle, dx0 + ox, dy0 + oy));
+                            assert_eq!(
+                                four.map(f32::to_bits),
+                                one.map(f32::to_bits),
+                                "trial {trial}, level {level}, ({angle}, {dx0}, {dy0})"
+                            );
                         }
                     }
                 }
