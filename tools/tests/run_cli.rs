@@ -28,3 +28,30 @@ fn stpere_folder_without_beams_names_the_replay_command_and_writes_nothing() {
     assert!(stderr.contains(&suggested), "{stderr}");
     assert!(!out.exists() || out.read_dir().unwrap().next().is_none());
 }
+
+/// The log goes to stderr in colour only on a terminal: captured through a
+/// pipe (a file, CI, `2>&1 | tee`), its lines carry no escape codes.
+#[test]
+fn log_lines_written_to_a_pipe_are_plain_text() {
+    let dir = tempfile::tempdir().unwrap();
+    let mission = dir.path().join("tank.mcap");
+    let simulate = Command::new(env!("CARGO_BIN_EXE_echofield"))
+        .args(["simulate", "--scenario", "tank", "--seed", "1", "--output"])
+        .arg(&mission)
+        .output()
+        .unwrap();
+    assert!(simulate.status.success(), "{simulate:?}");
+    let run = Command::new(env!("CARGO_BIN_EXE_echofield"))
+        .arg("run")
+        .arg(&mission)
+        .arg("--output")
+        .arg(dir.path().join("run"))
+        .arg("-vv")
+        .env_remove("RUST_LOG")
+        .output()
+        .unwrap();
+    assert!(run.status.success(), "{run:?}");
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(stderr.contains("DEBUG"), "no log lines: {stderr}");
+    assert!(!stderr.contains('\u{1b}'), "escape codes in: {stderr:?}");
+}
