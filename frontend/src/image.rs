@@ -582,7 +582,13 @@ mod tests {
         let levels = config.pyramid_levels.min(pyramid::EAGER_LEVELS);
         assert_eq!(image.pyramid().built_levels(), levels);
         let bins: usize = beams.iter().map(|b| b.intensities.len()).sum();
-        let rasters = 4 * cells + 2 * cells + levels * cells;
+        // Levels 1 and 2 hold a byte per cell, level h > 2 one per
+        // 2^(h-2) x 2^(h-2) cells.
+        let level_bytes = |h: usize| {
+            let s = pyramid::stride(h);
+            image.grid().width().div_ceil(s) * image.grid().height().div_ceil(s)
+        };
+        let rasters = 4 * cells + 2 * cells + (1..=levels).map(level_bytes).sum::<usize>();
         // The samples: one byte per bin, plus a few hundred bytes per beam
         // and the code table at most.
         let samples = image.heap_bytes() - rasters;
@@ -592,7 +598,10 @@ mod tests {
         );
         // Levels built later count when built.
         image.pyramid().level(levels + 1);
-        assert_eq!(image.heap_bytes(), rasters + samples + cells);
+        assert_eq!(
+            image.heap_bytes(),
+            rasters + samples + level_bytes(levels + 1)
+        );
     }
 
     #[test]

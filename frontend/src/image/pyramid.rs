@@ -2,30 +2,41 @@
 //! "precomputation grids" of Cartographer's fast correlative scan matcher,
 //! widened by one cell for the bilinear lookup).
 //!
-//! Level `h ≥ 1` has one value per raster cell: the maximum of the raster
-//! over the `(2^h + 1) × (2^h + 1)` cells `[x, x + 2^h] × [y, y + 2^h]`
-//! (cells outside the grid count as 0). A point at raster cell `c` read
-//! with bilinear interpolation at any of the `2^h × 2^h` translations
-//! `d0 + [0, 2^h)` only touches cells in `c + d0 + [0, 2^h]`, so
-//! `Σ_i L_h(c_i + d0)` bounds the score of the whole block from above, and
-//! no more loosely than the block requires. For a block starting left of
-//! (or below) the grid, the window of cell 0 contains every cell the block
-//! can read inside the grid, so `L_h(max(x, 0))` still bounds it; blocks
-//! wholly outside the grid read 0.
+//! The maxima of level `h ≥ 1` are, per raster cell, `L_h(x, y)`: the
+//! maximum of the raster over the `(2^h + 1) × (2^h + 1)` cells
+//! `[x, x + 2^h] × [y, y + 2^h]` (cells outside the grid count as 0). A
+//! point at raster cell `c` read with bilinear interpolation at any of
+//! the `2^h × 2^h` translations `d0 + [0, 2^h)` only touches cells in
+//! `c + d0 + [0, 2^h]`, so `Σ_i L_h(c_i + d0)` bounds the score of the
+//! whole block from above, and no more loosely than the block requires.
+//! For a block starting left of (or below) the grid, the window of cell 0
+//! contains every cell the block can read inside the grid, so
+//! `L_h(max(x, 0))` still bounds it; blocks wholly outside the grid read 0.
+//!
+//! Levels 1 and 2 store `L_h` for every cell. Level `h > 2` stores one
+//! value per block of `s × s` cells, `s = 2^(h-2)` ([`stride`]): the
+//! maximum of `L_h` over the block, read for every cell of it. That bounds
+//! the window widened to whole strides (`2^h + s` cells per axis instead
+//! of `2^h + 1`), a looser bound only where the search starts, over wide
+//! windows, and a quarter of the bytes per level up. An image then holds
+//! about 8.3 bytes per cell instead of 11 (`f32` raster, `u16` pose-fit
+//! raster, levels 1-5: 1 + 1 + 1/4 + 1/16 + 1/64): on the St Pere replay
+//! the images held to the end of the run take 466 MiB instead of 612
+//! (`cargo bench -p echofield --bench pipeline`) and the peak resident
+//! memory of `echofield run` is 572 MB instead of 725 (`/usr/bin/time
+//! -f %M`), with the same matches, bit for bit, and no measurable change
+//! in matching time.
 //!
 //! Values are stored as `u8`, rounded up on a scale that maps the raster's
-//! largest value to 255, so a level costs one byte per cell and the bound
-//! stays an upper bound (to within the scale's rounding, which is upwards).
-//! Level `h` is built from level `h - 1` with one maximum of two cells
-//! `2^(h-1)` apart per axis; level 1 from the raster with three cells.
+//! largest value to 255, so the bound stays an upper bound (to within the
+//! scale's rounding, which is upwards). `L_h` is built from `L_(h-1)` with
+//! one maximum of two cells `2^(h-1)` apart per axis; level 1 from the
+//! raster with three cells.
 //!
 //! Levels up to [`EAGER_LEVELS`] are built with the pyramid; the higher
 //! ones, which only searches over windows wider than `2^EAGER_LEVELS`
-//! cells use (first contacts with a place seen long ago), on first use.
-//! On the St Pere replay no search needs them, which saves two of the
-//! thirteen bytes per cell an image would hold (`f32` raster, `u16`
-//! pose-fit raster and seven levels; see
-//! [`AcousticImage::heap_bytes`](super::AcousticImage::heap_bytes)).
+//! cells use (first contacts with a place seen long ago), on first use,
+//! from level 2. On the St Pere replay 13 of 217 images need level 6.
 
 use super::grid::{Grid, max_value};
 use std::sync::OnceLock;
@@ -38,27 +49,48 @@ pub const EAGER_LEVELS: usize = 5;
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct PyramidLevel {
+    /// The raster's cells per row and column.
     width: usize,
     height: usize,
     /// `2^h`: the window spans `block + 1` cells per axis.
     block: usize,
-    /// Row-major, one value per raster cell.
+    /// Cells per stored value and axis ([`stride`]).
+    stride: usize,
+    /// Stored values per row: `ceil(width / stride)`.
+    stored_width: usize,
+    /// Row-major, one value per `stride × stride` raster cells.
     values: Vec<u8>,
 }
 
+/// Raster cells per stored value and axis at level `h`: 1 for levels 1
+/// and 2, `2^(h-2)` above (see the module doc).
+pub fn stride(h: usize) -> usize {
+    1 << h.saturating_sub(2)
+}
+
 impl PyramidLevel {
-    /// Row-major quantised maxima, one per raster cell (see
-    /// [`Pyramid::scale`]).
+    /// Row-major quantised maxima, one per `stride × stride` raster cells
+    /// (see [`Pyramid::scale`]).
     pub fn values(&self) -> &[u8] {
         &self.values
     }
 
-    /// Cells per row (the raster's width).
+    /// Stored values per row (the raster's width for a level of stride 1).
+    pub fn stored_width(&self) -> usize {
+        self.stored_width
+    }
+
+    /// Raster cells per stored value and axis.
+    pub fn stride(&self) -> usize {
+        self.stride
+    }
+
+    /// Cells per row of the raster.
     pub fn width(&self) -> usize {
         self.width
     }
 
-    /// Cells per column (the raster's height).
+    /// Cells per column of the raster.
     pub fn height(&self) -> usize {
         self.height
     }
@@ -77,7 +109,9 @@ impl PyramidLevel {
         if x >= self.width as i64 || y >= self.height as i64 || x < -block || y < -block {
             return 0;
         }
-        self.values[y.max(0) as usize * self.width + x.max(0) as usize]
+        let shift = self.stride.trailing_zeros();
+        let (i, j) = ((x.max(0) as usize) >> shift, (y.max(0) as usize) >> shift);
+        self.values[j * self.stored_width + i]
     }
 }
 
@@ -115,20 +149,25 @@ impl Pyramid {
         let levels: Vec<OnceLock<PyramidLevel>> = (0..levels).map(|_| OnceLock::new()).collect();
         // Level 1: windows of 3 cells, as two overlapping windows of 2.
         let pairs = dilate(&quantised, width, height, 1);
-        let first = PyramidLevel {
-            width,
-            height,
-            block: 2,
-            values: dilate(&pairs, width, height, 1),
-        };
+        let first = PyramidLevel::full(width, height, 1, dilate(&pairs, width, height, 1));
         levels[0].set(first).expect("a new cell is empty");
         let pyramid = Self {
             levels,
             scale,
             max_value: max,
         };
-        for h in 2..=pyramid.len().min(EAGER_LEVELS) {
-            pyramid.level(h);
+        // Each eager level from the full-resolution maxima of the one
+        // below, kept while the chain goes up.
+        let eager = pyramid.len().min(EAGER_LEVELS);
+        let mut full: Option<Vec<u8>> = None;
+        for h in 2..=eager {
+            let below = full.as_deref().unwrap_or(&pyramid.level(1).values);
+            let values = dilate(below, width, height, 1 << (h - 1));
+            let level = PyramidLevel::pooled(width, height, h, &values);
+            pyramid.levels[h - 1]
+                .set(level)
+                .expect("eager levels are built once");
+            full = Some(values);
         }
         pyramid
     }
@@ -142,18 +181,18 @@ impl Pyramid {
         self.levels.is_empty()
     }
 
-    /// Level `h` (`1 ≤ h ≤ len()`), built from level `h - 1` if this is
-    /// its first use.
+    /// Level `h` (`1 ≤ h ≤ len()`), built on first use from level 2, the
+    /// highest one stored at full resolution.
     pub fn level(&self, h: usize) -> &PyramidLevel {
         self.levels[h - 1].get_or_init(|| {
-            let previous = self.level(h - 1);
-            let (width, height) = (previous.width, previous.height);
-            PyramidLevel {
-                width,
-                height,
-                block: 1 << h,
-                values: dilate(&previous.values, width, height, 1 << (h - 1)),
+            // Levels 1 and 2 are stored at full resolution.
+            let base = self.level(h.min(3) - 1);
+            let (width, height) = (base.width, base.height);
+            let mut full = dilate(&base.values, width, height, 1 << (h.min(3) - 1));
+            for g in 4..=h {
+                full = dilate(&full, width, height, 1 << (g - 1));
             }
+            PyramidLevel::pooled(width, height, h, &full)
         })
     }
 
@@ -192,6 +231,45 @@ impl PartialEq for Pyramid {
             && self.max_value == other.max_value
             && self.len() == other.len()
             && (1..=self.len()).all(|h| self.level(h) == other.level(h))
+    }
+}
+
+impl PyramidLevel {
+    /// A level stored at full resolution.
+    fn full(width: usize, height: usize, h: usize, values: Vec<u8>) -> Self {
+        Self {
+            width,
+            height,
+            block: 1 << h,
+            stride: 1,
+            stored_width: width,
+            values,
+        }
+    }
+
+    /// Level `h` from its full-resolution maxima `full` (one per raster
+    /// cell), keeping the maximum of each `stride(h)`² block of them.
+    fn pooled(width: usize, height: usize, h: usize, full: &[u8]) -> Self {
+        let s = stride(h);
+        if s == 1 {
+            return Self::full(width, height, h, full.to_vec());
+        }
+        let (sw, sh) = (width.div_ceil(s), height.div_ceil(s));
+        let mut values = vec![0u8; sw * sh];
+        for (y, row) in full.chunks_exact(width).enumerate() {
+            let out = &mut values[(y / s) * sw..(y / s + 1) * sw];
+            for (o, cells) in out.iter_mut().zip(row.chunks(s)) {
+                *o = cells.iter().fold(*o, |m, &c| m.max(c));
+            }
+        }
+        Self {
+            width,
+            height,
+            block: 1 << h,
+            stride: s,
+            stored_width: sw,
+            values,
+        }
     }
 }
 
@@ -308,13 +386,23 @@ mod tests {
                     }
                 }
                 assert!(bound >= max, "h {h} at ({cx}, {cy}): {bound} < {max}");
-                // Tight: one quantisation step above the block's maximum,
-                // except for blocks that start outside the grid, which are
-                // bounded by the window at the grid's edge.
+                // Tight: one quantisation step above the maximum over the
+                // window widened to whole strides (`stride - 1` more cells
+                // per axis), except for blocks that start outside the
+                // grid, which are bounded by the window at the grid's edge.
                 if cx >= 0 && cy >= 0 {
+                    let s = level.stride() as i64;
+                    assert_eq!(s, 1 << (h as i64 - 2).max(0));
+                    let (x0, y0) = (cx / s * s, cy / s * s);
+                    let mut widened = 0.0_f32;
+                    for x in x0..x0 + s + block {
+                        for y in y0..y0 + s + block {
+                            widened = widened.max(grid.cell(x, y));
+                        }
+                    }
                     assert!(
-                        bound <= max + 1.0 / scale,
-                        "h {h} at ({cx}, {cy}): {bound} vs {max}"
+                        bound <= widened + 1.0 / scale,
+                        "h {h} at ({cx}, {cy}): {bound} vs {widened}"
                     );
                 }
             }

@@ -129,6 +129,9 @@ struct AngleTable {
     /// of its cell-centre coordinates) and the fractional rest. Their
     /// lookups need no clipping.
     inside: Vec<(u32, f32, f32)>,
+    /// The same points' cell coordinates, for the pyramid levels stored at
+    /// a coarser stride than the raster.
+    inside_cells: Vec<(i32, i32)>,
     /// The other points: integer cell coordinates and the fractional rest.
     edge: Vec<(i32, i32, f32, f32)>,
 }
@@ -171,6 +174,7 @@ impl<'a> SearchProblem<'a> {
         let theta = prior.theta() + f64::from(a as i32 - disc.angle_steps) * disc.angle_step_rad;
         let (s, c) = theta.sin_cos();
         let mut inside = Vec::with_capacity(self.points.len());
+        let mut inside_cells = Vec::with_capacity(self.points.len());
         let mut edge = Vec::new();
         for p in self.points {
             // Cell-centre coordinates: cell (i, j)'s centre is (i, j).
@@ -182,11 +186,16 @@ impl<'a> SearchProblem<'a> {
             let rest = ((x - fx) as f32, (y - fy) as f32);
             if cx - mx >= 0 && cx + mx + 1 < width && cy - my >= 0 && cy + my + 1 < height {
                 inside.push(((cy * width + cx) as u32, rest.0, rest.1));
+                inside_cells.push((cx as i32, cy as i32));
             } else {
                 edge.push((cx as i32, cy as i32, rest.0, rest.1));
             }
         }
-        AngleTable { inside, edge }
+        AngleTable {
+            inside,
+            inside_cells,
+            edge,
+        }
     }
 
     /// The bound of node `(angle, dx0, dy0)` at `level`; at level 0 the
@@ -200,10 +209,19 @@ impl<'a> SearchProblem<'a> {
         let pyramid = self.image.pyramid();
         let l = pyramid.level(level);
         let values = l.values();
-        let offset = dy0 as isize * l.width() as isize + dx0 as isize;
         let mut sum = 0u32;
-        for &(k, _, _) in inside {
-            sum += u32::from(values[(k as isize + offset) as usize]);
+        if l.stride() == 1 {
+            let offset = dy0 as isize * l.stored_width() as isize + dx0 as isize;
+            for &(k, _, _) in inside {
+                sum += u32::from(values[(k as isize + offset) as usize]);
+            }
+        } else {
+            let (shift, sw) = (l.stride().trailing_zeros(), l.stored_width());
+            for &(cx, cy) in &table.inside_cells {
+                // Inside points stay in the grid for every offset of the window.
+                let (x, y) = ((cx + dx0) as usize, (cy + dy0) as usize);
+                sum += u32::from(values[(y >> shift) * sw + (x >> shift)]);
+            }
         }
         for &(cx, cy, _, _) in edge {
             sum += u32::from(l.get(i64::from(cx + dx0), i64::from(cy + dy0)));
@@ -245,15 +263,30 @@ impl<'a> SearchProblem<'a> {
         }
         let pyramid = self.image.pyramid();
         let l = pyramid.level(level);
-        let (values, width) = (l.values(), l.width() as isize);
-        let base = dy0 as isize * width + dx0 as isize;
-        let s = step as isize;
-        let offsets = [base, base + s, base + s * width, base + s * width + s];
+        let values = l.values();
         let mut sums = [0u32; 4];
-        for &(k, _, _) in inside {
-            let k = k as isize;
-            for (sum, o) in sums.iter_mut().zip(offsets) {
-                *sum += u32::from(values[(k + o) as usize]);
+        if l.stride() == 1 {
+            let width = l.stored_width() as isize;
+            let base = dy0 as isize * width + dx0 as isize;
+            let s = step as isize;
+            let offsets = [base, base + s, base + s * width, base + s * width + s];
+            for &(k, _, _) in inside {
+                let k = k as isize;
+                for (sum, o) in sums.iter_mut().zip(offsets) {
+                    *sum += u32::from(values[(k + o) as usize]);
+                }
+            }
+        } else {
+            let (shift, sw) = (l.stride().trailing_zeros(), l.stored_width());
+            for &(cx, cy) in &table.inside_cells {
+                let (x0, y0) = ((cx + dx0) as usize, (cy + dy0) as usize);
+                let (x1, y1) = (x0 + step as usize, y0 + step as usize);
+                let (r0, r1) = ((y0 >> shift) * sw, (y1 >> shift) * sw);
+                let (c0, c1) = (x0 >> shift, x1 >> shift);
+                sums[0] += u32::from(values[r0 + c0]);
+                sums[1] += u32::from(values[r0 + c1]);
+                sums[2] += u32::from(values[r1 + c0]);
+                sums[3] += u32::from(values[r1 + c1]);
             }
         }
         for &(cx, cy, _, _) in edge {
