@@ -55,3 +55,42 @@ fn log_lines_written_to_a_pipe_are_plain_text() {
     assert!(stderr.contains("DEBUG"), "no log lines: {stderr}");
     assert!(!stderr.contains('\u{1b}'), "escape codes in: {stderr:?}");
 }
+
+/// `--threads` sets the worker threads; the trajectory is the same byte
+/// for byte with one thread and with three.
+#[test]
+fn the_thread_count_does_not_change_the_trajectory() {
+    let dir = tempfile::tempdir().unwrap();
+    let mission = dir.path().join("tank.mcap");
+    let simulate = Command::new(env!("CARGO_BIN_EXE_echofield"))
+        .args(["simulate", "--scenario", "tank", "--seed", "2", "--output"])
+        .arg(&mission)
+        .output()
+        .unwrap();
+    assert!(simulate.status.success(), "{simulate:?}");
+    let trajectory = |threads: &str| {
+        let out = dir.path().join(format!("run{threads}"));
+        let run = Command::new(env!("CARGO_BIN_EXE_echofield"))
+            .arg("run")
+            .arg(&mission)
+            .arg("--output")
+            .arg(&out)
+            .args(["--threads", threads])
+            .output()
+            .unwrap();
+        assert!(run.status.success(), "{run:?}");
+        std::fs::read(out.join("trajectory_tum.txt")).unwrap()
+    };
+    assert_eq!(trajectory("1"), trajectory("3"));
+    let zero = Command::new(env!("CARGO_BIN_EXE_echofield"))
+        .arg("run")
+        .arg(&mission)
+        .args(["--output", "unused", "--threads", "0"])
+        .output()
+        .unwrap();
+    assert!(!zero.status.success());
+    assert!(
+        String::from_utf8_lossy(&zero.stderr).contains("--threads"),
+        "{zero:?}"
+    );
+}
