@@ -13,10 +13,6 @@ struct Cli {
     /// More log output (-v info, -vv debug); RUST_LOG overrides.
     #[arg(short, long, action = clap::ArgAction::Count, global = true)]
     verbose: u8,
-    /// Worker threads (default: one per core, or RAYON_NUM_THREADS). The
-    /// results do not depend on it.
-    #[arg(long, global = true, value_name = "N")]
-    threads: Option<std::num::NonZeroUsize>,
     #[command(subcommand)]
     command: Command,
 }
@@ -51,14 +47,6 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     init_logging(cli.verbose);
-    if let Some(n) = cli.threads
-        && let Err(e) = rayon::ThreadPoolBuilder::new()
-            .num_threads(n.get())
-            .build_global()
-    {
-        eprintln!("error: cannot start {n} worker threads: {e}");
-        return ExitCode::FAILURE;
-    }
     let result = match cli.command {
         Command::Optimize(args) => cmd::optimize::run(args),
         Command::Convert(args) => cmd::convert::run(args),

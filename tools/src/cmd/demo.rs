@@ -39,9 +39,14 @@ pub struct Args {
     /// Pipeline configuration (TOML), as for `echofield run`.
     #[arg(long)]
     pub config: Option<PathBuf>,
+    /// Worker threads (default: one per core, or RAYON_NUM_THREADS); the
+    /// results do not depend on it.
+    #[arg(long, value_name = "N")]
+    pub threads: Option<std::num::NonZeroUsize>,
 }
 
 pub fn run(args: Args) -> Result<()> {
+    super::set_threads(args.threads)?;
     let config = SlamConfig::from_optional_toml_file(args.config.as_deref())?;
     let scenario = Scenario::named(&args.scenario)
         .with_context(|| format!("cannot set up scenario `{}`", args.scenario))?;

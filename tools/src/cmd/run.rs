@@ -43,9 +43,14 @@ pub struct Args {
     /// Output folder (created if needed).
     #[arg(long, short)]
     pub output: PathBuf,
+    /// Worker threads (default: one per core, or RAYON_NUM_THREADS); the
+    /// results do not depend on it.
+    #[arg(long, value_name = "N")]
+    pub threads: Option<std::num::NonZeroUsize>,
 }
 
 pub fn run(args: Args) -> Result<()> {
+    super::set_threads(args.threads)?;
     let config = SlamConfig::from_optional_toml_file(args.config.as_deref())?;
     let start = Instant::now();
     let mission = load_mission(&args.mission)?;
