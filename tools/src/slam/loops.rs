@@ -451,9 +451,13 @@ impl<'a> LoopCloser<'a> {
         nodes: &[NodeData],
     ) -> Result<Vec<LoopRecord>, SlamError> {
         let (matcher, config) = (self.matcher, self.config);
+        // Collected whole first: rayon's own `Result` collection may
+        // return any of several errors.
         let records = candidates
             .par_iter()
             .map(|c| examine(c, k, nodes, matcher, config))
+            .collect::<Vec<_>>()
+            .into_iter()
             .collect::<Result<Vec<_>, _>>()?;
         for record in &records {
             self.matches += usize::from(record.matched.is_some() || record.no_match.is_some());
