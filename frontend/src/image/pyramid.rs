@@ -157,17 +157,25 @@ impl Pyramid {
             max_value: max,
         };
         // Each eager level from the full-resolution maxima of the one
-        // below, kept while the chain goes up.
+        // below, read from the level itself while it is stored at full
+        // resolution and kept beside it once it is pooled.
         let eager = pyramid.len().min(EAGER_LEVELS);
         let mut full: Option<Vec<u8>> = None;
         for h in 2..=eager {
-            let below = full.as_deref().unwrap_or(&pyramid.level(1).values);
+            let below = full.as_deref().unwrap_or(&pyramid.level(h - 1).values);
             let values = dilate(below, width, height, 1 << (h - 1));
-            let level = PyramidLevel::pooled(width, height, h, &values);
+            let (level, kept) = if stride(h) == 1 {
+                (PyramidLevel::full(width, height, h, values), None)
+            } else {
+                (
+                    PyramidLevel::pooled(width, height, h, &values),
+                    Some(values),
+                )
+            };
             pyramid.levels[h - 1]
                 .set(level)
                 .expect("eager levels are built once");
-            full = Some(values);
+            full = kept;
         }
         pyramid
     }
@@ -192,7 +200,11 @@ impl Pyramid {
             for g in 4..=h {
                 full = dilate(&full, width, height, 1 << (g - 1));
             }
-            PyramidLevel::pooled(width, height, h, &full)
+            if stride(h) == 1 {
+                PyramidLevel::full(width, height, h, full)
+            } else {
+                PyramidLevel::pooled(width, height, h, &full)
+            }
         })
     }
 
@@ -251,9 +263,6 @@ impl PyramidLevel {
     /// cell), keeping the maximum of each `stride(h)`² block of them.
     fn pooled(width: usize, height: usize, h: usize, full: &[u8]) -> Self {
         let s = stride(h);
-        if s == 1 {
-            return Self::full(width, height, h, full.to_vec());
-        }
         let (sw, sh) = (width.div_ceil(s), height.div_ceil(s));
         let mut values = vec![0u8; sw * sh];
         for (y, row) in full.chunks_exact(width).enumerate() {
