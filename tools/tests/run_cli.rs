@@ -1,7 +1,7 @@
 //! `echofield run` on input it cannot process: a one-line error and no
 //! output.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
 #[test]
@@ -29,18 +29,24 @@ fn stpere_folder_without_beams_names_the_replay_command_and_writes_nothing() {
     assert!(!out.exists() || out.read_dir().unwrap().next().is_none());
 }
 
+/// `echofield simulate` of the tank scenario with `seed` into `dir`.
+fn simulated_tank(dir: &Path, seed: &str) -> PathBuf {
+    let mission = dir.join("tank.mcap");
+    let simulate = Command::new(env!("CARGO_BIN_EXE_echofield"))
+        .args(["simulate", "--scenario", "tank", "--seed", seed, "--output"])
+        .arg(&mission)
+        .output()
+        .unwrap();
+    assert!(simulate.status.success(), "{simulate:?}");
+    mission
+}
+
 /// The log goes to stderr in colour only on a terminal: captured through a
 /// pipe (a file, CI, `2>&1 | tee`), its lines carry no escape codes.
 #[test]
 fn log_lines_written_to_a_pipe_are_plain_text() {
     let dir = tempfile::tempdir().unwrap();
-    let mission = dir.path().join("tank.mcap");
-    let simulate = Command::new(env!("CARGO_BIN_EXE_echofield"))
-        .args(["simulate", "--scenario", "tank", "--seed", "1", "--output"])
-        .arg(&mission)
-        .output()
-        .unwrap();
-    assert!(simulate.status.success(), "{simulate:?}");
+    let mission = simulated_tank(dir.path(), "1");
     let run = Command::new(env!("CARGO_BIN_EXE_echofield"))
         .arg("run")
         .arg(&mission)
@@ -61,13 +67,7 @@ fn log_lines_written_to_a_pipe_are_plain_text() {
 #[test]
 fn the_thread_count_does_not_change_the_trajectory() {
     let dir = tempfile::tempdir().unwrap();
-    let mission = dir.path().join("tank.mcap");
-    let simulate = Command::new(env!("CARGO_BIN_EXE_echofield"))
-        .args(["simulate", "--scenario", "tank", "--seed", "2", "--output"])
-        .arg(&mission)
-        .output()
-        .unwrap();
-    assert!(simulate.status.success(), "{simulate:?}");
+    let mission = simulated_tank(dir.path(), "2");
     let trajectory = |threads: &str| {
         let out = dir.path().join(format!("run{threads}"));
         let run = Command::new(env!("CARGO_BIN_EXE_echofield"))
