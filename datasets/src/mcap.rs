@@ -72,7 +72,7 @@ mod writer;
 
 pub use reader::read_mission;
 pub use ros2::{Ros2GroundTruth, write_mission_ros2};
-pub use writer::MissionWriter;
+pub use writer::{CompletedMcap, MissionWriter};
 
 use crate::DatasetError;
 use echofield_frontend::sensors::Mission;

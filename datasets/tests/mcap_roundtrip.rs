@@ -279,3 +279,49 @@ fn failed_write_keeps_the_previous_file_and_leaves_no_temporary() {
         .collect();
     assert_eq!(names, vec![std::ffi::OsString::from("mission.mcap")]);
 }
+
+#[test]
+fn a_completed_file_replaces_the_old_one_only_when_persisted() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("mission.mcap");
+    let old = random_mission(20, 8, 2);
+    write_mission(&path, &old).unwrap();
+    let before = std::fs::read(&path).unwrap();
+    let new = random_mission(30, 8, 3);
+    let names = || -> Vec<String> {
+        let mut names: Vec<String> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        names
+    };
+    let write = || {
+        let mut writer = MissionWriter::create(&path, "new", &new.mounting).unwrap();
+        for beam in &new.beams {
+            writer.write_beam(beam).unwrap();
+        }
+        writer.complete().unwrap()
+    };
+
+    // Completed but dropped: the old file stays and the temporary goes.
+    let completed = write();
+    assert_eq!(completed.path(), path);
+    assert_eq!(std::fs::read(&path).unwrap(), before);
+    assert_eq!(names().len(), 2, "{:?}", names());
+    drop(completed);
+    assert_eq!(std::fs::read(&path).unwrap(), before);
+    assert_eq!(names(), vec!["mission.mcap".to_string()]);
+
+    // Completed and persisted: the new file, as `finish` writes it.
+    write().persist().unwrap();
+    assert_eq!(read_mission(&path).unwrap().beams.len(), 30);
+    assert_eq!(names(), vec!["mission.mcap".to_string()]);
+    let persisted = std::fs::read(&path).unwrap();
+    let mut writer = MissionWriter::create(&path, "new", &new.mounting).unwrap();
+    for beam in &new.beams {
+        writer.write_beam(beam).unwrap();
+    }
+    writer.finish().unwrap();
+    assert_eq!(std::fs::read(&path).unwrap(), persisted);
+}

@@ -103,3 +103,40 @@ fn failure_in_a_fresh_folder_writes_nothing_after_it() {
         temporary_files(dir.path())
     );
 }
+
+#[test]
+fn the_outputs_do_not_depend_on_the_threads_that_write_them() {
+    // `mission.mcap` is encoded beside the other files, its images in
+    // parallel: one thread and three must give the same bytes.
+    let (mission, output) = run();
+    let write = |threads: usize| {
+        let dir = tempfile::tempdir().unwrap();
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| write_outputs(dir.path(), &output, &mission))
+            .unwrap();
+        dir
+    };
+    let (one, three) = (write(1), write(3));
+    for name in BEFORE.iter().chain(&AFTER).chain(&["mosaic.png"]) {
+        let (a, b) = (one.path().join(name), three.path().join(name));
+        if *name == "report.json" {
+            // Only the writing time differs.
+            let read = |p: &Path| -> serde_json::Value {
+                let mut v: serde_json::Value =
+                    serde_json::from_slice(&std::fs::read(p).unwrap()).unwrap();
+                v["timings"]["writing_s"] = serde_json::Value::Null;
+                v
+            };
+            assert_eq!(read(&a), read(&b));
+        } else {
+            assert!(
+                std::fs::read(&a).unwrap() == std::fs::read(&b).unwrap(),
+                "{name} differs"
+            );
+        }
+    }
+    assert!(temporary_files(three.path()).is_empty());
+}

@@ -149,7 +149,13 @@ impl McapFile {
     }
 
     /// Completes the file, syncs it and renames it over the destination.
-    pub fn finish(mut self) -> Result<(), DatasetError> {
+    pub fn finish(self) -> Result<(), DatasetError> {
+        self.complete()?.persist()
+    }
+
+    /// Completes and syncs the temporary file without renaming it: the
+    /// destination changes only with [`CompletedMcap::persist`].
+    pub fn complete(mut self) -> Result<CompletedMcap, DatasetError> {
         let path = self.path.clone();
         self.mcap.finish().map_err(|e| mcap_error(&path, e))?;
         let mut file = self
@@ -161,6 +167,32 @@ impl McapFile {
         file.sync_all().map_err(|e| DatasetError::io(&path, e))?;
         set_readable(&file);
         drop(file);
+        Ok(CompletedMcap {
+            temp: self.temp,
+            path,
+        })
+    }
+}
+
+/// A complete MCAP file still at its temporary path
+/// ([`MissionWriter::complete`]). [`CompletedMcap::persist`] renames it
+/// over the destination; dropping it removes it and leaves the
+/// destination untouched.
+#[derive(Debug)]
+pub struct CompletedMcap {
+    temp: tempfile::TempPath,
+    path: PathBuf,
+}
+
+impl CompletedMcap {
+    /// The destination.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Renames the file over the destination.
+    pub fn persist(self) -> Result<(), DatasetError> {
+        let path = self.path;
         self.temp
             .persist(&path)
             .map_err(|e| DatasetError::io(&path, e.error))?;
@@ -311,5 +343,12 @@ impl MissionWriter {
     /// Completes the file and renames it over the destination.
     pub fn finish(self) -> Result<(), DatasetError> {
         self.file.finish()
+    }
+
+    /// Completes the file but leaves the destination as it is until
+    /// [`CompletedMcap::persist`]: for a file written beside others that
+    /// must replace its old version only once they have.
+    pub fn complete(self) -> Result<CompletedMcap, DatasetError> {
+        self.file.complete()
     }
 }

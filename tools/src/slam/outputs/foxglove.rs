@@ -26,12 +26,13 @@ use super::loops_csv::LoopRow;
 use crate::plots::encode_png;
 use crate::slam::SlamOutput;
 use anyhow::{Context, Result};
-use echofield_datasets::mcap::MissionWriter;
 use echofield_datasets::mcap::foxglove::ScanPoint;
+use echofield_datasets::mcap::{CompletedMcap, MissionWriter};
 use echofield_frontend::image::AcousticImage;
 use echofield_frontend::sensors::SensorMounting;
 use echofield_graph::Se2;
 use image::ExtendedColorType;
+use rayon::prelude::*;
 use std::path::Path;
 
 pub const FRAME_WORLD: &str = "world";
@@ -48,6 +49,19 @@ pub fn write_results_mcap(
     loops: &[LoopRow],
     world_from_ground_truth: Option<Se2>,
 ) -> Result<()> {
+    complete_results_mcap(path, output, mounting, loops, world_from_ground_truth)?.persist()?;
+    Ok(())
+}
+
+/// [`write_results_mcap`] up to the last step: the file is complete at a
+/// temporary path, and replaces `path` only when persisted.
+pub fn complete_results_mcap(
+    path: &Path,
+    output: &SlamOutput,
+    mounting: &SensorMounting,
+    loops: &[LoopRow],
+    world_from_ground_truth: Option<Se2>,
+) -> Result<CompletedMcap> {
     let Some(first) = output.nodes.first() else {
         anyhow::bail!("the run has no nodes");
     };
@@ -76,7 +90,20 @@ pub fn write_results_mcap(
         w.write_point_cloud(topic, t0, FRAME_WORLD, &Se2::identity(), &points)?;
     }
 
-    let mut png_pixels = Vec::new();
+    // The images are encoded in parallel (with rayon) and written in node
+    // order; an error names the first node whose image failed.
+    let pngs: Vec<Result<Option<Vec<u8>>>> = output
+        .images
+        .par_iter()
+        .enumerate()
+        .map_init(Vec::new, |pixels, (k, image)| {
+            (!image.is_empty())
+                .then(|| image_png(image, pixels))
+                .transpose()
+                .with_context(|| format!("acoustic image of node {k}"))
+        })
+        .collect();
+    let mut pngs = pngs.into_iter();
     for (k, node) in output.nodes.iter().enumerate() {
         let t = node.stamp_s;
         w.write_frame_transform("/tf", t, FRAME_WORLD, FRAME_VEHICLE, &node.optimised)?;
@@ -94,14 +121,11 @@ pub fn write_results_mcap(
                 .collect();
             w.write_point_cloud("/slam/scan", t, FRAME_WORLD, &node.optimised, &points)?;
         }
-        if let Some(image) = output.images.get(k).filter(|i| !i.is_empty()) {
-            let png = image_png(image, &mut png_pixels)
-                .with_context(|| format!("acoustic image of node {k}"))?;
+        if let Some(png) = pngs.next().transpose()?.flatten() {
             w.write_compressed_image("/slam/acoustic_image", t, FRAME_VEHICLE, "png", &png)?;
         }
     }
-    w.finish()?;
-    Ok(())
+    Ok(w.complete()?)
 }
 
 /// Points along the segments between the optimised positions of the loop
