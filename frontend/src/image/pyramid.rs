@@ -29,14 +29,18 @@
 //!
 //! Values are stored as `u8`, rounded up on a scale that maps the raster's
 //! largest value to 255, so the bound stays an upper bound (to within the
-//! scale's rounding, which is upwards). `L_h` is built from `L_(h-1)` with
-//! one maximum of two cells `2^(h-1)` apart per axis; level 1 from the
-//! raster with three cells.
+//! scale's rounding, which is upwards). `L_h` is the maximum of `L_(h-1)`
+//! at two cells `2^(h-1)` apart per axis; level 1 is built from the raster
+//! with three cells, level 2 from level 1 at full resolution, and each
+//! pooled level from the pooled values of the one below, without going
+//! back to full resolution (`PyramidLevel::coarsened`: the same values,
+//! for one pass over the level below, a quarter of the raster or less from
+//! level 4 on, instead of two passes over the whole raster).
 //!
 //! Levels up to [`EAGER_LEVELS`] are built with the pyramid; the higher
 //! ones, which only searches over windows wider than `2^EAGER_LEVELS`
-//! cells use (first contacts with a place seen long ago), on first use,
-//! from level 2. On the St Pere replay 13 of 217 images need level 6.
+//! cells use (first contacts with a place seen long ago), on first use.
+//! On the St Pere replay 13 of 217 images need level 6.
 
 use super::grid::{Grid, max_value};
 use std::sync::OnceLock;
@@ -156,28 +160,31 @@ impl Pyramid {
             scale,
             max_value: max,
         };
-        // Each eager level from the full-resolution maxima of the one
-        // below, read from the level itself while it is stored at full
-        // resolution and kept beside it once it is pooled.
-        let eager = pyramid.len().min(EAGER_LEVELS);
-        let mut full: Option<Vec<u8>> = None;
-        for h in 2..=eager {
-            let below = full.as_deref().unwrap_or(&pyramid.level(h - 1).values);
-            let values = dilate(below, width, height, 1 << (h - 1));
-            let (level, kept) = if stride(h) == 1 {
-                (PyramidLevel::full(width, height, h, values), None)
-            } else {
-                (
-                    PyramidLevel::pooled(width, height, h, &values),
-                    Some(values),
-                )
-            };
+        // Level 2 from level 1 at full resolution; the pooled levels each
+        // from the one below.
+        for h in 2..=pyramid.len().min(EAGER_LEVELS) {
+            let level = pyramid.next_level(h);
             pyramid.levels[h - 1]
                 .set(level)
                 .expect("eager levels are built once");
-            full = kept;
         }
         pyramid
+    }
+
+    /// Level `h ≥ 2` from level `h - 1`.
+    fn next_level(&self, h: usize) -> PyramidLevel {
+        let below = self.level(h - 1);
+        if stride(h) == 1 {
+            let (width, height) = (below.width, below.height);
+            PyramidLevel::full(
+                width,
+                height,
+                h,
+                dilate(&below.values, width, height, 1 << (h - 1)),
+            )
+        } else {
+            below.coarsened()
+        }
     }
 
     /// Number of levels above the raster (the raster itself is level 0).
@@ -189,23 +196,9 @@ impl Pyramid {
         self.levels.is_empty()
     }
 
-    /// Level `h` (`1 ≤ h ≤ len()`), built on first use from level 2, the
-    /// highest one stored at full resolution.
+    /// Level `h` (`1 ≤ h ≤ len()`), built on first use from level `h - 1`.
     pub fn level(&self, h: usize) -> &PyramidLevel {
-        self.levels[h - 1].get_or_init(|| {
-            // Levels 1 and 2 are stored at full resolution.
-            let base = self.level(h.min(3) - 1);
-            let (width, height) = (base.width, base.height);
-            let mut full = dilate(&base.values, width, height, 1 << (h.min(3) - 1));
-            for g in 4..=h {
-                full = dilate(&full, width, height, 1 << (g - 1));
-            }
-            if stride(h) == 1 {
-                PyramidLevel::full(width, height, h, full)
-            } else {
-                PyramidLevel::pooled(width, height, h, &full)
-            }
-        })
+        self.levels[h - 1].get_or_init(|| self.next_level(h))
     }
 
     /// Bytes of the levels built so far on the heap.
@@ -259,8 +252,52 @@ impl PyramidLevel {
         }
     }
 
+    /// The next level up (`h + 1 ≥ 3`, stored at twice this stride), from
+    /// this one alone. With `s` its stride, the stored value of block `b`
+    /// (per axis) is the maximum of `L_(h+1)` over cells `[b·s, (b+1)·s)`,
+    /// that is of `L_h` over those cells and over the same cells shifted
+    /// by `2^h = 4·(s/2)`: four of this level's blocks of `s/2` cells,
+    /// `2b, 2b + 1, 2b + 4, 2b + 5` (0 beyond the grid). Maxima of the
+    /// same quantised cells as [`PyramidLevel::pooled`] of the
+    /// full-resolution `L_(h+1)`, so the values are the same, for a pass
+    /// over this level instead of two over the raster.
+    fn coarsened(&self) -> Self {
+        let h = self.block.trailing_zeros() as usize + 1;
+        let s = stride(h);
+        debug_assert!(s == 2 * self.stride && h >= 3);
+        let (pw, ph) = (self.stored_width, self.values.len() / self.stored_width);
+        let (sw, sh) = (self.width.div_ceil(s), self.height.div_ceil(s));
+        // Along x into `rows` (sw × ph), then along y.
+        let mut rows = vec![0u8; sw * ph];
+        for (src, dst) in self.values.chunks_exact(pw).zip(rows.chunks_exact_mut(sw)) {
+            for (b, d) in dst.iter_mut().enumerate() {
+                *d = four_max(src, 2 * b);
+            }
+        }
+        let mut values = vec![0u8; sw * sh];
+        for (b, dst) in values.chunks_exact_mut(sw).enumerate() {
+            for r in [2 * b, 2 * b + 1, 2 * b + 4, 2 * b + 5] {
+                if r < ph {
+                    let src = &rows[r * sw..(r + 1) * sw];
+                    for (d, &v) in dst.iter_mut().zip(src) {
+                        *d = (*d).max(v);
+                    }
+                }
+            }
+        }
+        Self {
+            width: self.width,
+            height: self.height,
+            block: 2 * self.block,
+            stride: s,
+            stored_width: sw,
+            values,
+        }
+    }
+
     /// Level `h` from its full-resolution maxima `full` (one per raster
     /// cell), keeping the maximum of each `stride(h)`² block of them.
+    #[cfg(test)]
     fn pooled(width: usize, height: usize, h: usize, full: &[u8]) -> Self {
         let s = stride(h);
         let (sw, sh) = (width.div_ceil(s), height.div_ceil(s));
@@ -279,6 +316,19 @@ impl PyramidLevel {
             stored_width: sw,
             values,
         }
+    }
+}
+
+/// `max(v[i], v[i + 1], v[i + 4], v[i + 5])`, entries beyond `v` 0.
+#[inline]
+fn four_max(v: &[u8], i: usize) -> u8 {
+    if i + 5 < v.len() {
+        v[i].max(v[i + 1]).max(v[i + 4]).max(v[i + 5])
+    } else {
+        [i, i + 1, i + 4, i + 5]
+            .iter()
+            .filter_map(|&k| v.get(k))
+            .fold(0, |m, &x| m.max(x))
     }
 }
 
@@ -417,6 +467,34 @@ mod tests {
             }
         }
         assert_eq!(pyramid.built_levels(), 7);
+    }
+
+    #[test]
+    fn coarsened_levels_equal_the_pooled_full_resolution_maxima() {
+        // The reference: each level's full-resolution maxima by dilation
+        // of the one below, pooled over its stride.
+        let mut rng = ChaCha8Rng::seed_from_u64(8);
+        for (width, height) in [(37, 23), (64, 64), (5, 70), (130, 9), (1, 1)] {
+            let mut grid = Grid::zeros(0.0, 0.0, 1.0, width, height);
+            for v in grid.values_mut() {
+                *v = if rng.random_bool(0.2) {
+                    rng.random::<f32>()
+                } else {
+                    0.0
+                };
+            }
+            let pyramid = Pyramid::build(&grid, 9);
+            let mut full = pyramid.level(2).values().to_vec();
+            for h in 3..=9 {
+                full = dilate(&full, width, height, 1 << (h - 1));
+                let reference = PyramidLevel::pooled(width, height, h, &full);
+                assert_eq!(
+                    pyramid.level(h),
+                    &reference,
+                    "{width} x {height}, level {h}"
+                );
+            }
+        }
     }
 
     #[test]
