@@ -94,6 +94,29 @@ impl Grid {
         }
     }
 
+    /// A grid of the given cells (row-major, `width · height` of them),
+    /// for rasters whose every cell is computed anyway: no zero-filling
+    /// first.
+    pub(crate) fn from_values(
+        origin_x_m: f64,
+        origin_y_m: f64,
+        cell_size_m: f64,
+        width: usize,
+        height: usize,
+        values: Vec<f32>,
+    ) -> Self {
+        assert_eq!(values.len(), width * height, "one value per cell");
+        Self {
+            origin_x_m,
+            origin_y_m,
+            cell_size_m,
+            width,
+            height,
+            values,
+            step: 1.0,
+        }
+    }
+
     pub fn values_mut(&mut self) -> &mut [f32] {
         &mut self.values
     }

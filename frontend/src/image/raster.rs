@@ -112,9 +112,38 @@ fn beam_lines<V>(beams: &[SonarBeam], poses: &[Se2], profiles: &Profiles<V>) -> 
     lines
 }
 
-/// An empty grid covering every bin of every beam, plus one cell of margin,
+/// Where a raster lies: its lower-left corner, cell size and cells per row
+/// and column.
+#[derive(Clone, Copy, Debug)]
+struct Frame {
+    origin_x_m: f64,
+    origin_y_m: f64,
+    cell_m: f64,
+    width: usize,
+    height: usize,
+}
+
+impl Frame {
+    fn cells(&self) -> usize {
+        self.width * self.height
+    }
+
+    /// The grid of this frame holding `values` (one per cell, row-major).
+    fn grid(&self, values: Vec<f32>) -> Grid {
+        Grid::from_values(
+            self.origin_x_m,
+            self.origin_y_m,
+            self.cell_m,
+            self.width,
+            self.height,
+            values,
+        )
+    }
+}
+
+/// The frame covering every bin of every beam, plus one cell of margin,
 /// with its origin on a multiple of the cell size.
-fn covering_grid(lines: &[BeamLine], cell_m: f64) -> Result<Grid, FrontendError> {
+fn covering_frame(lines: &[BeamLine], cell_m: f64) -> Result<Frame, FrontendError> {
     let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
     for l in lines {
         let r = l.far_range_m();
@@ -142,7 +171,13 @@ fn covering_grid(lines: &[BeamLine], cell_m: f64) -> Result<Grid, FrontendError>
             ),
         ));
     }
-    Ok(Grid::zeros(ox, oy, cell_m, width, height))
+    Ok(Frame {
+        origin_x_m: ox,
+        origin_y_m: oy,
+        cell_m,
+        width,
+        height,
+    })
 }
 
 /// How samples falling into one cell are combined.
@@ -252,30 +287,29 @@ pub fn rasterise(
     config: &ImageConfig,
 ) -> Result<Grid, FrontendError> {
     let lines = beam_lines(beams, poses, profiles);
-    let mut grid = covering_grid(&lines, cell_m)?;
-    let n = grid.width() * grid.height();
-    let mut painter = Painter::<f32>::new(&grid, config);
-    match config.interpolation {
+    let frame = covering_frame(&lines, cell_m)?;
+    let n = frame.cells();
+    let mut painter = Painter::<f32>::new(&frame, config);
+    let values = match config.interpolation {
         Interpolation::Nearest => CLOSEST.with_borrow_mut(|buffer| {
             buffer.clear();
             buffer.resize(n, u64::MAX);
             let mut acc = ClosestSample { best: buffer };
             painter.paint(&lines, profiles, &mut acc);
-            for (out, key) in grid.values_mut().iter_mut().zip(acc.best.iter()) {
-                *out = closest_value(*key);
-            }
+            acc.best.iter().map(|&key| closest_value(key)).collect()
         }),
         Interpolation::AngularWindow => MEAN.with_borrow_mut(|buffer| {
             buffer.clear();
             buffer.resize(n, [0.0; 2]);
             let mut acc = MeanSample { sum_count: buffer };
             painter.paint(&lines, profiles, &mut acc);
-            for (out, [sum, count]) in grid.values_mut().iter_mut().zip(acc.sum_count.iter()) {
-                *out = if *count > 0.0 { sum / count } else { 0.0 };
-            }
+            acc.sum_count
+                .iter()
+                .map(|&[sum, count]| if count > 0.0 { sum / count } else { 0.0 })
+                .collect()
         }),
-    }
-    Ok(grid)
+    };
+    Ok(frame.grid(values))
 }
 
 /// Rasterises two versions of the same beams (`a` and `b`, the same bins
@@ -297,10 +331,12 @@ pub fn rasterise_pair(
         ));
     };
     let lines = beam_lines(beams, poses, &paired);
-    let mut grid_a = covering_grid(&lines, cell_m)?;
-    let mut grid_b = covering_grid(&lines, cell_m)?;
-    let n = grid_a.width() * grid_a.height();
-    let mut painter = Painter::<[f32; 2]>::new(&grid_a, config);
+    let frame = covering_frame(&lines, cell_m)?;
+    let n = frame.cells();
+    let mut painter = Painter::<[f32; 2]>::new(&frame, config);
+    // Every cell of both grids is written from the accumulators, so they
+    // are not zero-filled first.
+    let (mut values_a, mut values_b) = (Vec::with_capacity(n), Vec::with_capacity(n));
     if config.interpolation == Interpolation::Nearest {
         CLOSEST.with_borrow_mut(|best| {
             SECOND_CLOSEST.with_borrow_mut(|second| {
@@ -310,14 +346,13 @@ pub fn rasterise_pair(
                 }
                 let mut acc = ClosestPair { best, second };
                 painter.paint(&lines, &paired, &mut acc);
-                let (out_a, out_b) = (grid_a.values_mut(), grid_b.values_mut());
-                for (i, (&key_a, &key_b)) in acc.best.iter().zip(acc.second.iter()).enumerate() {
-                    out_a[i] = closest_value(key_a);
-                    out_b[i] = closest_value(key_b);
+                for (&key_a, &key_b) in acc.best.iter().zip(acc.second.iter()) {
+                    values_a.push(closest_value(key_a));
+                    values_b.push(closest_value(key_b));
                 }
             })
         });
-        return Ok((grid_a, grid_b));
+        return Ok((frame.grid(values_a), frame.grid(values_b)));
     }
     MEAN.with_borrow_mut(|sum_count| {
         SECOND_SUM.with_borrow_mut(|second_sum| {
@@ -330,18 +365,14 @@ pub fn rasterise_pair(
                 second_sum,
             };
             painter.paint(&lines, &paired, &mut acc);
-            let (out_a, out_b) = (grid_a.values_mut(), grid_b.values_mut());
-            for (i, (&[sum_a, count], &sum_b)) in
-                acc.sum_count.iter().zip(acc.second_sum.iter()).enumerate()
-            {
-                if count > 0.0 {
-                    out_a[i] = sum_a / count;
-                    out_b[i] = sum_b / count;
-                }
+            for (&[sum_a, count], &sum_b) in acc.sum_count.iter().zip(acc.second_sum.iter()) {
+                let seen = count > 0.0;
+                values_a.push(if seen { sum_a / count } else { 0.0 });
+                values_b.push(if seen { sum_b / count } else { 0.0 });
             }
         })
     });
-    Ok((grid_a, grid_b))
+    Ok((frame.grid(values_a), frame.grid(values_b)))
 }
 
 /// Sweeps the wedges and feeds samples to an [`Accumulator`].
@@ -363,15 +394,14 @@ struct Painter<V> {
 }
 
 impl<V: Sample> Painter<V> {
-    fn new(grid: &Grid, config: &ImageConfig) -> Self {
-        let (ox, oy) = grid.origin_m();
+    fn new(frame: &Frame, config: &ImageConfig) -> Self {
         Self {
-            origin_x_m: ox,
-            origin_y_m: oy,
-            inv_cell: 1.0 / grid.cell_size_m(),
-            width: grid.width(),
-            height: grid.height(),
-            spacing_m: grid.cell_size_m() / SQRT_2,
+            origin_x_m: frame.origin_x_m,
+            origin_y_m: frame.origin_y_m,
+            inv_cell: 1.0 / frame.cell_m,
+            width: frame.width,
+            height: frame.height,
+            spacing_m: frame.cell_m / SQRT_2,
             interpolation: config.interpolation,
             half_width_rad: config.angular_half_width_rad,
             max_wedge_rad: config.max_wedge_rad,
