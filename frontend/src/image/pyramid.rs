@@ -253,11 +253,11 @@ impl PyramidLevel {
     }
 
     /// The next level up (`h + 1 ≥ 3`, stored at twice this stride), from
-    /// this one alone. With `s` its stride, the stored value of block `b`
-    /// (per axis) is the maximum of `L_(h+1)` over cells `[b·s, (b+1)·s)`,
-    /// that is of `L_h` over those cells and over the same cells shifted
-    /// by `2^h = 4·(s/2)`: four of this level's blocks of `s/2` cells,
-    /// `2b, 2b + 1, 2b + 4, 2b + 5` (0 beyond the grid). Maxima of the
+    /// this one (level `h`) alone. With `s` the new stride, the new stored
+    /// value of block `b` (per axis) is the maximum of `L_(h+1)` over cells
+    /// `[b·s, (b+1)·s)`, that is of `L_h` over those cells and over the
+    /// same cells shifted by `2^h = 4·(s/2)`: four of this level's blocks
+    /// of `s/2` cells, `2b, 2b + 1, 2b + 4, 2b + 5` (0 beyond the grid). Maxima of the
     /// same quantised cells as [`PyramidLevel::pooled`] of the
     /// full-resolution `L_(h+1)`, so the values are the same, for a pass
     /// over this level instead of two over the raster.
