@@ -46,12 +46,19 @@ thread_local! {
 trait Sample: Copy + Default {
     /// `self += w · v`.
     fn add_scaled(&mut self, w: f32, v: Self);
+    /// `w · v`.
+    fn scaled(w: f32, v: Self) -> Self;
 }
 
 impl Sample for f32 {
     #[inline]
     fn add_scaled(&mut self, w: f32, v: Self) {
         *self += w * v;
+    }
+
+    #[inline]
+    fn scaled(w: f32, v: Self) -> Self {
+        w * v
     }
 }
 
@@ -60,6 +67,11 @@ impl Sample for [f32; 2] {
     fn add_scaled(&mut self, w: f32, v: Self) {
         self[0] += w * v[0];
         self[1] += w * v[1];
+    }
+
+    #[inline]
+    fn scaled(w: f32, v: Self) -> Self {
+        [w * v[0], w * v[1]]
     }
 }
 
@@ -623,23 +635,37 @@ impl<V: Sample> Painter<V> {
                 break;
             }
         }
-        let at = self.combined.len();
-        self.combined.resize(at + bins - start_bin, V::default());
+        let (at, len) = (self.combined.len(), bins - start_bin);
         let total: f32 = self.weights.iter().map(|(_, w)| w).sum();
-        if total <= 0.0 {
-            return;
+        // The sum over the window of each beam's weighted values, in the
+        // weights' order, from 0 (bins that no beam reaches stay 0). The
+        // first beam's terms are written rather than added to zeros: the
+        // values and weights are not negative, so `0 + w·v` is `w·v` bit
+        // for bit, and the buffer is not zero-filled first.
+        let mut first = true;
+        if total > 0.0 {
+            for &(k, wk) in &self.weights {
+                let wk = wk / total;
+                let profile = profiles.beam(k);
+                let end = profile.len().min(bins);
+                if end <= start_bin {
+                    continue;
+                }
+                let values = &profile[start_bin..end];
+                if first {
+                    self.combined
+                        .extend(values.iter().map(|&v| V::scaled(wk, v)));
+                    self.combined.resize(at + len, V::default());
+                    first = false;
+                } else {
+                    for (c, v) in self.combined[at..].iter_mut().zip(values) {
+                        c.add_scaled(wk, *v);
+                    }
+                }
+            }
         }
-        let out = &mut self.combined[at..];
-        for &(k, wk) in &self.weights {
-            let wk = wk / total;
-            let profile = profiles.beam(k);
-            let end = profile.len().min(bins);
-            if end <= start_bin {
-                continue;
-            }
-            for (c, v) in out.iter_mut().zip(&profile[start_bin..end]) {
-                c.add_scaled(wk, *v);
-            }
+        if first {
+            self.combined.resize(at + len, V::default());
         }
     }
 }
