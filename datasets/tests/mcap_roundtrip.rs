@@ -296,13 +296,14 @@ fn a_completed_file_replaces_the_old_one_only_when_persisted() {
         names.sort();
         names
     };
-    let write = || {
+    let writer = || {
         let mut writer = MissionWriter::create(&path, "new", &new.mounting).unwrap();
         for beam in &new.beams {
             writer.write_beam(beam).unwrap();
         }
-        writer.complete().unwrap()
+        writer
     };
+    let write = || writer().complete().unwrap();
 
     // Completed but dropped: the old file stays and the temporary goes.
     let completed = write();
@@ -318,10 +319,6 @@ fn a_completed_file_replaces_the_old_one_only_when_persisted() {
     assert_eq!(read_mission(&path).unwrap().beams.len(), 30);
     assert_eq!(names(), vec!["mission.mcap".to_string()]);
     let persisted = std::fs::read(&path).unwrap();
-    let mut writer = MissionWriter::create(&path, "new", &new.mounting).unwrap();
-    for beam in &new.beams {
-        writer.write_beam(beam).unwrap();
-    }
-    writer.finish().unwrap();
+    writer().finish().unwrap();
     assert_eq!(std::fs::read(&path).unwrap(), persisted);
 }

@@ -83,15 +83,8 @@ impl Grid {
         width: usize,
         height: usize,
     ) -> Self {
-        Self {
-            origin_x_m,
-            origin_y_m,
-            cell_size_m,
-            width,
-            height,
-            values: vec![0.0; width * height],
-            step: 1.0,
-        }
+        let values = vec![0.0; width * height];
+        Self::from_values(origin_x_m, origin_y_m, cell_size_m, width, height, values)
     }
 
     /// A grid of the given cells (row-major, `width · height` of them),
