@@ -74,16 +74,15 @@ pub fn write_outputs(dir: &Path, output: &SlamOutput, mission: &Mission) -> Resu
             timed("mosaic", || write_mosaic(dir, output))
         },
         || {
-            let t = Instant::now();
-            let mcap = foxglove::complete_results_mcap(
-                &mcap_path,
-                output,
-                &mission.mounting,
-                &loops,
-                world_from_gt,
-            );
-            tracing::debug!("outputs: mcap in {:.1} ms", t.elapsed().as_secs_f64() * 1e3);
-            mcap
+            timed("mcap", || {
+                foxglove::complete_results_mcap(
+                    &mcap_path,
+                    output,
+                    &mission.mounting,
+                    &loops,
+                    world_from_gt,
+                )
+            })
         },
     );
     others?;
@@ -98,14 +97,14 @@ pub fn write_outputs(dir: &Path, output: &SlamOutput, mission: &Mission) -> Resu
 }
 
 /// Runs one group of outputs and logs its time.
-fn timed(what: &str, f: impl FnOnce() -> Result<()>) -> Result<()> {
+fn timed<T>(what: &str, f: impl FnOnce() -> Result<T>) -> Result<T> {
     let t = Instant::now();
-    f()?;
+    let result = f()?;
     tracing::debug!(
         "outputs: {what} in {:.1} ms",
         t.elapsed().as_secs_f64() * 1e3
     );
-    Ok(())
+    Ok(result)
 }
 
 /// The node poses as trajectory rows, one pose per node stamp.
