@@ -18,7 +18,8 @@
 
 use crate::image::{CellValue, Grid};
 use echofield_graph::Se2;
-use nalgebra::{Matrix3, Point2, SMatrix, SVector, Vector3};
+use nalgebra::{Cholesky, Const, Matrix3, Point2, SMatrix, SVector, Vector3};
+use std::sync::OnceLock;
 
 /// The fitted surface and the covariance derived from it.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -60,13 +61,13 @@ pub fn fit_surface<T: CellValue>(
 ) -> SurfaceFit {
     let cell_m = grid.cell_size_m();
     let steps = Vector3::new(cell_m, cell_m, angle_step_rad);
-    let mut normal = SMatrix::<f64, 10, 10>::zeros();
-    let mut rhs = SVector::<f64, 10>::zeros();
-    let (mut inner_normal, mut inner_rhs) = (normal, rhs);
     let radius = radius.clamp(1, crate::image::grid::MAX_SHIFT_RADIUS);
+    let lattice = Lattice::of_radius(radius);
     let n = 2 * radius + 1;
     let r = radius as i32;
-    let mut samples = Vec::with_capacity(n * n * n);
+    let mut rhs = SVector::<f64, 10>::zeros();
+    let mut inner_rhs = rhs;
+    let mut scores = Vec::with_capacity(n * n * n);
     let mut sums = vec![0.0; n * n];
     for c in -r..=r {
         let (sin, cos) = (pose.theta() + f64::from(c) * angle_step_rad).sin_cos();
@@ -76,39 +77,28 @@ pub fn fit_surface<T: CellValue>(
             let y = sin * p.x + cos * p.y + pose.y();
             grid.add_bilinear_shifts(x, y, radius, &mut sums);
         }
-        for b in -r..=r {
-            for a in -r..=r {
-                let s = sums[(b + r) as usize * n + (a + r) as usize];
-                let u = Vector3::new(f64::from(a), f64::from(b), f64::from(c));
-                let phi = features(&u);
-                normal += phi * phi.transpose();
-                rhs += phi * s;
-                if a.abs() <= 1 && b.abs() <= 1 && c.abs() <= 1 {
-                    inner_normal += phi * phi.transpose();
-                    inner_rhs += phi * s;
-                }
-                samples.push((phi, s));
+        // `sums` is in row-major order of (b, a), as the lattice's nodes of
+        // this c.
+        for &s in &sums {
+            let node = &lattice.nodes[scores.len()];
+            rhs += node.features * s;
+            if node.inner {
+                inner_rhs += node.features * s;
             }
+            scores.push(s);
         }
     }
-    // The lattice is symmetric and full, so the normal matrix is invertible.
-    let solve = |normal: SMatrix<f64, 10, 10>, rhs: SVector<f64, 10>| {
-        normal
-            .cholesky()
-            .map(|ch| ch.solve(&rhs))
-            .unwrap_or_else(SVector::zeros)
-    };
-    let beta = solve(normal, rhs);
-    let inner = solve(inner_normal, inner_rhs);
+    let beta = lattice.normal.solve(&rhs);
+    let inner = lattice.inner_normal.solve(&inner_rhs);
     let (mut lo, mut hi, mut sq) = (f64::MAX, f64::MIN, 0.0);
-    for (phi, s) in &samples {
-        let r = s - phi.dot(&beta);
+    for (node, s) in lattice.nodes.iter().zip(&scores) {
+        let r = s - node.features.dot(&beta);
         sq += r * r;
         lo = lo.min(*s);
         hi = hi.max(*s);
     }
     let relative_fit_residual = if hi > lo {
-        (sq / samples.len() as f64).sqrt() / (hi - lo)
+        (sq / scores.len() as f64).sqrt() / (hi - lo)
     } else {
         0.0
     };
@@ -147,6 +137,62 @@ pub fn fit_surface<T: CellValue>(
         covariance: 0.5 * (covariance + covariance.transpose()),
         relative_fit_residual,
         peak_offset: peak_n.component_mul(&steps),
+    }
+}
+
+/// The sampling lattice of [`fit_surface`] for one radius: every node's
+/// features in the order the scores are computed (`c`, then `b`, then `a`,
+/// each from `-r` to `r`), and the factored normal matrices of the
+/// least-squares fits over the whole lattice and over its inner 3 x 3 x 3
+/// nodes. They depend on the radius alone, so they are built once.
+struct Lattice {
+    nodes: Vec<LatticeNode>,
+    normal: Cholesky<f64, Const<10>>,
+    inner_normal: Cholesky<f64, Const<10>>,
+}
+
+struct LatticeNode {
+    features: SVector<f64, 10>,
+    /// Within one step of the centre on every axis.
+    inner: bool,
+}
+
+impl Lattice {
+    /// The lattice of `radius` (1 to
+    /// [`MAX_SHIFT_RADIUS`](crate::image::grid::MAX_SHIFT_RADIUS)).
+    fn of_radius(radius: usize) -> &'static Self {
+        static LATTICES: [OnceLock<Lattice>; crate::image::grid::MAX_SHIFT_RADIUS] =
+            [const { OnceLock::new() }; crate::image::grid::MAX_SHIFT_RADIUS];
+        LATTICES[radius - 1].get_or_init(|| Self::build(radius as i32))
+    }
+
+    fn build(r: i32) -> Self {
+        let mut nodes = Vec::new();
+        let mut normal = SMatrix::<f64, 10, 10>::zeros();
+        let mut inner_normal = normal;
+        for c in -r..=r {
+            for b in -r..=r {
+                for a in -r..=r {
+                    let features =
+                        features(&Vector3::new(f64::from(a), f64::from(b), f64::from(c)));
+                    let inner = a.abs() <= 1 && b.abs() <= 1 && c.abs() <= 1;
+                    normal += features * features.transpose();
+                    if inner {
+                        inner_normal += features * features.transpose();
+                    }
+                    nodes.push(LatticeNode { features, inner });
+                }
+            }
+        }
+        // The lattices are symmetric and full (at least 3 nodes per axis),
+        // so both normal matrices are positive definite.
+        let factor =
+            |m: SMatrix<f64, 10, 10>| m.cholesky().expect("a full lattice's normal matrix");
+        Self {
+            nodes,
+            normal: factor(normal),
+            inner_normal: factor(inner_normal),
+        }
     }
 }
 
