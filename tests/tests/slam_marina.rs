@@ -197,4 +197,20 @@ fn marina_mission_is_five_times_better_than_dead_reckoning() {
     );
     let ratio = counts.recalled_pairs as f64 / counts.recall_pairs as f64;
     assert!((ratio - recall).abs() < 1e-12);
+    // The bins by overlap split the same pairs; the pairs that share the
+    // most are recalled the most (measured: 0.46 of the 176 pairs of
+    // overlap 0.4-0.5, 0.93-1.0 from 0.7 up).
+    let bins = &counts.recall_by_overlap;
+    assert_eq!(
+        bins.iter().map(|b| b.pairs).sum::<usize>(),
+        counts.recall_pairs
+    );
+    assert_eq!(
+        bins.iter().map(|b| b.recalled).sum::<usize>(),
+        counts.recalled_pairs
+    );
+    let rate = |b: &echofield::slam::RecallBin| b.recalled as f64 / b.pairs as f64;
+    let (first, last) = (&bins[0], &bins[bins.len() - 1]);
+    assert!(first.pairs > 0 && last.pairs > 0, "{bins:?}");
+    assert!(rate(last) > rate(first), "{bins:?}");
 }

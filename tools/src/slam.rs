@@ -64,7 +64,8 @@ pub use error::SlamError;
 pub use loops::LoopConfig;
 pub use pipeline::run_mission;
 pub use result::{
-    LoopRecord, NodeRecord, RejectReason, Report, SequentialRecord, SlamOutput, StageTimings,
+    LoopRecord, NodeRecord, RecallBin, RejectReason, Report, SequentialRecord, SlamOutput,
+    StageTimings,
 };
 
 use anyhow::{Context, Result, bail};

@@ -325,6 +325,20 @@ pub struct LoopEvaluation {
     pub partial_loops: usize,
     pub partial_false_positives: usize,
     pub partial_constrained_correct: usize,
+    /// The recall pairs and those recalled by ground-truth overlap, in
+    /// bins of a tenth from `evaluation.recall_min_overlap` up: how recall
+    /// falls off as two scans share less.
+    pub recall_by_overlap: Vec<RecallBin>,
+}
+
+/// Recall over the recall pairs whose ground-truth scan overlap lies in
+/// `[min_overlap, max_overlap)` (the last bin includes 1).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct RecallBin {
+    pub min_overlap: f64,
+    pub max_overlap: f64,
+    pub pairs: usize,
+    pub recalled: usize,
 }
 
 /// What dead reckoning measured about the navigation sensors and used.
