@@ -156,7 +156,7 @@ pub fn evaluate(
             let bin = recall_by_overlap
                 .iter()
                 .position(|b| o < b.max_overlap)
-                .unwrap_or(recall_by_overlap.len() - 1);
+                .unwrap_or(recall_by_overlap.len().saturating_sub(1));
             if let Some(bin) = recall_by_overlap.get_mut(bin) {
                 bin.pairs += 1;
                 bin.recalled += recalled;
