@@ -27,7 +27,8 @@ use super::uncertainty::invert;
 use echofield_frontend::FrontendError;
 use echofield_frontend::image::AcousticImage;
 use echofield_frontend::matcher::{
-    MatchResult, MatcherConfig, QualityModel, Search, SearchWindow, match_scan_with,
+    CovarianceModel, MatchOptions, MatchResult, MatcherConfig, QualityModel, Search, SearchWindow,
+    match_scan_with,
 };
 use echofield_graph::{Se2, wrap_angle};
 use nalgebra::{Matrix3, Point2};
@@ -78,15 +79,23 @@ pub fn reverse_match(
 ) -> Result<(ReverseCheck, Option<Se2>), FrontendError> {
     let (forward_cov, forward) = (&forward.covariance, &forward.image_from_scan);
     // Only the pose of the reverse match is compared: its quality, which
-    // no gate reads, is taken on the raster.
+    // no gate reads, is taken on the raster, and its covariance is fitted
+    // over the small lattice unless the fusion weighs by it.
+    let options = MatchOptions {
+        search,
+        quality: QualityModel::Raster,
+        covariance: match fusion {
+            Fusion::Midpoint => CovarianceModel::Inner,
+            Fusion::InformationWeighted => CovarianceModel::Surface,
+        },
+    };
     let outcome = match_scan_with(
         old_scan,
         new_image,
         &forward.inverse(),
         &tolerance.window,
         matcher,
-        search,
-        QualityModel::Raster,
+        options,
     )?;
     let Some(r) = outcome.matched() else {
         let check = ReverseCheck {
