@@ -637,29 +637,55 @@ mod tests {
         }
     }
 
-    #[test]
-    fn the_inner_covariance_lattice_changes_only_the_covariance() {
+    /// Matches four random offsets of a static scene, by the global and the
+    /// local search, each with the options `first` and `second` make from
+    /// [`MatchOptions::edge`], and hands both results to `check` (with the
+    /// trial, the scan's points and the image). `seed` picks the offsets,
+    /// `first_rotation_seed` the first trial's simulation seed.
+    fn compare_options(
+        seed: u64,
+        first_rotation_seed: u64,
+        first: impl Fn(MatchOptions) -> MatchOptions,
+        second: impl Fn(MatchOptions) -> MatchOptions,
+        check: impl Fn(u64, &[Point2<f64>], &AcousticImage, MatchResult, MatchResult),
+    ) {
         let scene = SceneConfig::default();
         let a = static_rotation(&scene, 12);
         let image = image_of(&a);
         let config = pipeline_matcher();
-        let mut rng = ChaCha8Rng::seed_from_u64(29);
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
         for trial in 0..4 {
-            let (b, truth) = offset_rotation(&scene, &a, &mut rng, 400 + trial);
+            let (b, truth) = offset_rotation(&scene, &a, &mut rng, first_rotation_seed + trial);
             let window = SearchWindow::new(0.5, 0.5, 3.0_f64.to_radians());
             for search in [Search::Global, Search::Local] {
-                let run = |covariance| {
-                    let options = MatchOptions {
-                        covariance,
-                        ..MatchOptions::edge(search)
-                    };
+                let run = |options| {
                     match_scan_with(&b.wall_points, &image, &truth, &window, &config, options)
                         .unwrap()
                         .matched()
                         .unwrap()
                         .clone()
                 };
-                let (surface, inner) = (run(CovarianceModel::Surface), run(CovarianceModel::Inner));
+                let edge = MatchOptions::edge(search);
+                let (x, y) = (run(first(edge)), run(second(edge)));
+                check(trial, &b.wall_points, &image, x, y);
+            }
+        }
+    }
+
+    #[test]
+    fn the_inner_covariance_lattice_changes_only_the_covariance() {
+        let with = |covariance| {
+            move |options| MatchOptions {
+                covariance,
+                ..options
+            }
+        };
+        compare_options(
+            29,
+            400,
+            with(CovarianceModel::Surface),
+            with(CovarianceModel::Inner),
+            |trial, _, _, surface, inner| {
                 // The same pose to the bit, and the same quality.
                 assert_eq!(surface.image_from_scan, inner.image_from_scan);
                 assert_eq!(surface.searched_peak, inner.searched_peak);
@@ -677,39 +703,25 @@ mod tests {
                         "trial {trial} axis {k}: {ci} vs {cs}"
                     );
                 }
-            }
-        }
+            },
+        );
     }
 
     #[test]
     fn raster_quality_changes_only_the_quality() {
-        let scene = SceneConfig::default();
-        let a = static_rotation(&scene, 12);
-        let image = image_of(&a);
-        let config = pipeline_matcher();
-        let mut rng = ChaCha8Rng::seed_from_u64(23);
-        for trial in 0..4 {
-            let (b, truth) = offset_rotation(&scene, &a, &mut rng, 300 + trial);
-            let window = SearchWindow::new(0.5, 0.5, 3.0_f64.to_radians());
-            for search in [Search::Global, Search::Local] {
-                let run = |quality| {
-                    let options = MatchOptions {
-                        quality,
-                        ..MatchOptions::edge(search)
-                    };
-                    match_scan_with(&b.wall_points, &image, &truth, &window, &config, options)
-                        .unwrap()
-                        .matched()
-                        .unwrap()
-                        .clone()
-                };
-                let (samples, raster) = (run(QualityModel::Samples), run(QualityModel::Raster));
+        let with = |quality| move |options| MatchOptions { quality, ..options };
+        compare_options(
+            23,
+            300,
+            with(QualityModel::Samples),
+            with(QualityModel::Raster),
+            |trial, points, image, samples, raster| {
                 assert_eq!(samples.image_from_scan, raster.image_from_scan);
                 assert_eq!(samples.covariance, raster.covariance);
-                let n = b.wall_points.len() as f64;
-                let expected = raster_score(&b.wall_points, &image, &raster.searched_peak) / n;
+                let n = points.len() as f64;
+                let expected = raster_score(points, image, &raster.searched_peak) / n;
                 assert!((raster.quality.mean_intensity - expected).abs() < 1e-12);
-                let fine = mean_score(&b.wall_points, &image, &samples.searched_peak);
+                let fine = mean_score(points, image, &samples.searched_peak);
                 assert!((samples.quality.mean_intensity - fine).abs() < 1e-12);
                 // On a right match both models see the wall under the points.
                 assert!(samples.quality.mean_intensity > 0.3, "trial {trial}");
@@ -719,8 +731,8 @@ mod tests {
                     raster.quality.mean_intensity,
                     samples.quality.mean_intensity
                 );
-            }
-        }
+            },
+        );
     }
 
     #[test]
