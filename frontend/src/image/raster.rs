@@ -317,7 +317,7 @@ pub fn rasterise(
             painter.paint(&lines, profiles, &mut acc);
             acc.sum_count
                 .iter()
-                .map(|&[sum, count]| if count > 0.0 { sum / count } else { 0.0 })
+                .map(|&[sum, count]| mean(sum, count))
                 .collect()
         }),
     };
@@ -346,11 +346,12 @@ pub fn rasterise_pair(
     let frame = covering_frame(&lines, cell_m)?;
     let n = frame.cells();
     let mut painter = Painter::<[f32; 2]>::new(&frame, config);
-    // Every cell of both grids is written from the accumulators, so they
-    // are not zero-filled first.
-    let (mut values_a, mut values_b) = (Vec::with_capacity(n), Vec::with_capacity(n));
+    // Each grid is collected in a pass of its own over the accumulators:
+    // an exact-size `map` + `collect` compiles to a vector loop, where one
+    // loop pushing into both grids stayed scalar (4.5% of a St Pere run,
+    // `perf`).
     if config.interpolation == Interpolation::Nearest {
-        CLOSEST.with_borrow_mut(|best| {
+        return Ok(CLOSEST.with_borrow_mut(|best| {
             SECOND_CLOSEST.with_borrow_mut(|second| {
                 for buffer in [&mut *best, &mut *second] {
                     buffer.clear();
@@ -358,15 +359,12 @@ pub fn rasterise_pair(
                 }
                 let mut acc = ClosestPair { best, second };
                 painter.paint(&lines, &paired, &mut acc);
-                for (&key_a, &key_b) in acc.best.iter().zip(acc.second.iter()) {
-                    values_a.push(closest_value(key_a));
-                    values_b.push(closest_value(key_b));
-                }
+                let values = |keys: &[u64]| keys.iter().map(|&key| closest_value(key)).collect();
+                (frame.grid(values(acc.best)), frame.grid(values(acc.second)))
             })
-        });
-        return Ok((frame.grid(values_a), frame.grid(values_b)));
+        }));
     }
-    MEAN.with_borrow_mut(|sum_count| {
+    Ok(MEAN.with_borrow_mut(|sum_count| {
         SECOND_SUM.with_borrow_mut(|second_sum| {
             sum_count.clear();
             sum_count.resize(n, [0.0; 2]);
@@ -377,14 +375,21 @@ pub fn rasterise_pair(
                 second_sum,
             };
             painter.paint(&lines, &paired, &mut acc);
-            for (&[sum_a, count], &sum_b) in acc.sum_count.iter().zip(acc.second_sum.iter()) {
-                let seen = count > 0.0;
-                values_a.push(if seen { sum_a / count } else { 0.0 });
-                values_b.push(if seen { sum_b / count } else { 0.0 });
-            }
+            let values_a = acc.sum_count.iter().map(|&[sum, count]| mean(sum, count));
+            let values_b = (acc.second_sum.iter().zip(acc.sum_count.iter()))
+                .map(|(&sum, &[_, count])| mean(sum, count));
+            (
+                frame.grid(values_a.collect()),
+                frame.grid(values_b.collect()),
+            )
         })
-    });
-    Ok((frame.grid(values_a), frame.grid(values_b)))
+    }))
+}
+
+/// The mean of a cell's samples from their sum and count (0 where none fell).
+#[inline]
+fn mean(sum: f32, count: f32) -> f32 {
+    if count > 0.0 { sum / count } else { 0.0 }
 }
 
 /// Sweeps the wedges and feeds samples to an [`Accumulator`].
