@@ -171,28 +171,42 @@ fn place_image(
     for (iy, row) in image.values().chunks_exact(iw).enumerate() {
         let row_x = base.0 + iy as f64 * step_y.0;
         let row_y = base.1 + iy as f64 * step_y.1;
-        for (ix, &value) in row.iter().enumerate() {
-            if value < floor {
+        // Most cells are fainter than `floor`: runs of them are skipped a
+        // vector compare at a time (a branch per cell took 40% of the
+        // mosaic's time on the St Pere replay).
+        for (run, cells) in row.chunks(SKIP_RUN).enumerate() {
+            if !cells
+                .iter()
+                .fold(false, |any, &v| any | (v >= floor) | v.is_nan())
+            {
                 continue;
             }
-            let (cx, cy) = (row_x + ix as f64 * step_x.0, row_y + ix as f64 * step_x.1);
-            for (dx, dy) in subs {
-                let (fx, fy) = (cx + dx, cy + dy);
-                if fx < 0.0 || fy < 0.0 || fx >= ww || fy >= wh {
+            for (ix, &value) in (run * SKIP_RUN..).zip(cells) {
+                if value < floor {
                     continue;
                 }
-                let i = fy as usize * width + fx as usize;
-                match blend {
-                    MosaicBlend::Max => out[i] = out[i].max(value),
-                    MosaicBlend::Mean => {
-                        out[i] += value;
-                        counts[i] = counts[i].saturating_add(1);
+                let (cx, cy) = (row_x + ix as f64 * step_x.0, row_y + ix as f64 * step_x.1);
+                for (dx, dy) in subs {
+                    let (fx, fy) = (cx + dx, cy + dy);
+                    if fx < 0.0 || fy < 0.0 || fx >= ww || fy >= wh {
+                        continue;
+                    }
+                    let i = fy as usize * width + fx as usize;
+                    match blend {
+                        MosaicBlend::Max => out[i] = out[i].max(value),
+                        MosaicBlend::Mean => {
+                            out[i] += value;
+                            counts[i] = counts[i].saturating_add(1);
+                        }
                     }
                 }
             }
         }
     }
 }
+
+/// Image cells per run that [`place_image`] tests for echoes at once.
+const SKIP_RUN: usize = 16;
 
 /// The part of `grid` holding values of at least `level`, widened by
 /// `margin_m` on every side (the whole grid when no value reaches `level`).
