@@ -103,6 +103,10 @@ impl Exclusion {
     }
 }
 
+/// A local climb scores a 3 x 3 layer of leaves in one pass when at least
+/// this many of them are new ([`SearchProblem::local_max`]).
+const NINE_LEAVES_MIN_NEW: usize = 3;
+
 /// Statistics of one search.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct SearchStats {
@@ -297,6 +301,36 @@ impl<'a> SearchProblem<'a> {
         sums.map(|sum| sum as f32 / pyramid.scale())
     }
 
+    /// The scores of the 3 × 3 leaves `(dx0 + i, dy0 + j)`, `i, j ∈ 0..3`,
+    /// at `angle`, at index `3j + i`: each equal to
+    /// [`SearchProblem::bound`] of that leaf (the same sums in the same
+    /// order), with the table read once and one 4 × 4 patch of cells per
+    /// point instead of nine 2 × 2 ones. All nine must lie in the window.
+    fn nine_leaf_scores(&self, angle: i32, dx0: i32, dy0: i32) -> [f32; 9] {
+        let table = self.table((angle + self.disc.angle_steps) as usize);
+        let grid = self.image.grid();
+        let (values, width) = (grid.values(), grid.width());
+        let offset = dy0 as isize * width as isize + dx0 as isize;
+        let mut sums = [0.0_f32; 9];
+        for &(k, fx, fy) in &table.inside {
+            let k = (k as isize + offset) as usize;
+            let rows: [&[f32]; 4] =
+                std::array::from_fn(|r| &values[k + r * width..k + r * width + 4]);
+            for j in 0..3 {
+                let (below, above) = (rows[j], rows[j + 1]);
+                for i in 0..3 {
+                    sums[3 * j + i] +=
+                        bilinear([below[i], below[i + 1], above[i], above[i + 1]], fx, fy);
+                }
+            }
+        }
+        for (n, sum) in sums.iter_mut().enumerate() {
+            let (i, j) = ((n % 3) as i32, (n / 3) as i32);
+            *sum = add_edge_leaf_score(*sum, grid, &table.edge, dx0 + i, dy0 + j);
+        }
+        sums
+    }
+
     /// `Σ_i I(c_i + d + f_i)`: bilinear, cells outside the grid are 0.
     fn leaf_score(
         &self,
@@ -359,28 +393,58 @@ impl<'a> SearchProblem<'a> {
     /// ends; leaves are evaluated at most once. For a prior already close
     /// to the answer this costs tens of leaves where the global search
     /// evaluates about as many nodes as the window has leaves (the bounds
-    /// of a smooth image prune little in a window of a few cells).
+    /// of a smooth image prune little in a window of a few cells). The
+    /// new leaves around each leaf are scored nine at a time where they
+    /// can be ([`SearchProblem::nine_leaf_scores`]): one densification
+    /// match (`match_scan/pipeline_local_0.5m_3deg`, climb and covariance)
+    /// took 1.60 M instructions with single leaves and takes 1.37 M.
     pub fn local_max(&self, stats: &mut SearchStats) -> Option<Leaf> {
         let d = self.disc;
         let (nx, ny) = ((2 * d.cells_x + 1) as usize, (2 * d.cells_y + 1) as usize);
         let n_angles = (2 * d.angle_steps + 1) as usize;
         let mut memo = vec![f32::NAN; n_angles * nx * ny];
-        let mut score = |angle: i32, dx: i32, dy: i32| {
-            let i = ((angle + d.angle_steps) as usize * nx + (dx + d.cells_x) as usize) * ny
-                + (dy + d.cells_y) as usize;
-            if memo[i].is_nan() {
+        let index = |angle: i32, dx: i32, dy: i32| {
+            ((angle + d.angle_steps) as usize * nx + (dx + d.cells_x) as usize) * ny
+                + (dy + d.cells_y) as usize
+        };
+        let score = |memo: &mut [f32], stats: &mut SearchStats, angle: i32, dx: i32, dy: i32| {
+            let slot = &mut memo[index(angle, dx, dy)];
+            if slot.is_nan() {
                 stats.nodes += 1;
-                memo[i] = self.bound(0, angle, dx, dy);
+                *slot = self.bound(0, angle, dx, dy);
             }
-            memo[i]
+            *slot
         };
         let mut current = Leaf {
             angle: 0,
             dx: 0,
             dy: 0,
-            score: score(0, 0, 0),
+            score: score(&mut memo, stats, 0, 0, 0),
         };
         loop {
+            // The neighbourhood's leaves not scored yet: a 3 x 3 layer per
+            // angle in one pass over the points where the layer lies in
+            // the window and most of it is new.
+            let (x0, y0) = (current.dx - 1, current.dy - 1);
+            let layer_fits =
+                x0 >= -d.cells_x && x0 + 2 <= d.cells_x && y0 >= -d.cells_y && y0 + 2 <= d.cells_y;
+            for a in current.angle - 1..=current.angle + 1 {
+                if !layer_fits || a.abs() > d.angle_steps {
+                    continue;
+                }
+                let cell = |n: usize| index(a, x0 + (n % 3) as i32, y0 + (n / 3) as i32);
+                let new = (0..9).filter(|&n| memo[cell(n)].is_nan()).count();
+                if new < NINE_LEAVES_MIN_NEW {
+                    continue;
+                }
+                for (n, s) in self.nine_leaf_scores(a, x0, y0).into_iter().enumerate() {
+                    let slot = &mut memo[cell(n)];
+                    if slot.is_nan() {
+                        stats.nodes += 1;
+                        *slot = s;
+                    }
+                }
+            }
             let mut best = current;
             for da in -1..=1 {
                 for ex in -1..=1 {
@@ -389,7 +453,7 @@ impl<'a> SearchProblem<'a> {
                         if a.abs() > d.angle_steps || x.abs() > d.cells_x || y.abs() > d.cells_y {
                             continue;
                         }
-                        let s = score(a, x, y);
+                        let s = score(&mut memo, stats, a, x, y);
                         if s > best.score {
                             best = Leaf {
                                 angle: a,
@@ -699,6 +763,49 @@ mod tests {
                                 "trial {trial}, level {level}, ({angle}, {dx0}, {dy0})"
                             );
                         }
+                    }
+                }
+            }
+        }
+    }
+
+    /// The nine leaves scored in one pass equal the leaves scored one by
+    /// one, bit for bit, for points inside the grid as well as at its edge.
+    #[test]
+    fn nine_leaf_scores_equal_the_single_scores() {
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        let disc = Discretisation {
+            angle_step_rad: 0.03,
+            angle_steps: 2,
+            cells_x: 6,
+            cells_y: 5,
+        };
+        for trial in 0..4 {
+            let (image, points) = random_image_and_scan(&mut rng, 0.4);
+            let prior = Se2::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                0.2,
+            );
+            let problem = SearchProblem::new(&points, &image, &prior, &disc);
+            let table = problem.table(disc.angle_steps as usize);
+            assert!(
+                !table.inside.is_empty() && !table.edge.is_empty(),
+                "trial {trial}: both kinds of points"
+            );
+            for angle in -2..=2 {
+                for dx0 in -disc.cells_x..=disc.cells_x - 2 {
+                    for dy0 in -disc.cells_y..=disc.cells_y - 2 {
+                        let nine = problem.nine_leaf_scores(angle, dx0, dy0);
+                        let one: [f32; 9] = std::array::from_fn(|n| {
+                            let (i, j) = ((n % 3) as i32, (n / 3) as i32);
+                            problem.bound(0, angle, dx0 + i, dy0 + j)
+                        });
+                        assert_eq!(
+                            nine.map(f32::to_bits),
+                            one.map(f32::to_bits),
+                            "trial {trial}, ({angle}, {dx0}, {dy0})"
+                        );
                     }
                 }
             }
