@@ -724,18 +724,16 @@ mod tests {
         }
     }
 
-    /// The four children's bounds read in one pass equal the bounds read
-    /// one by one, bit for bit, at every level and for points inside the
-    /// grid as well as at its edge.
-    #[test]
-    fn child_bounds_equal_the_single_bounds() {
-        let mut rng = ChaCha8Rng::seed_from_u64(6);
-        let disc = Discretisation {
-            angle_step_rad: 0.03,
-            angle_steps: 2,
-            cells_x: 12,
-            cells_y: 9,
-        };
+    /// Four search problems over random images (seeded by `seed`), each
+    /// with scan points inside the grid and at its edge at angle index
+    /// `angle_index`, passed to `check` with the trial number.
+    fn with_edge_problems(
+        seed: u64,
+        disc: &Discretisation,
+        angle_index: usize,
+        mut check: impl FnMut(usize, &SearchProblem),
+    ) {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
         for trial in 0..4 {
             let (image, points) = random_image_and_scan(&mut rng, 0.4);
             let prior = Se2::new(
@@ -743,12 +741,28 @@ mod tests {
                 rng.random_range(-1.0..1.0),
                 0.2,
             );
-            let problem = SearchProblem::new(&points, &image, &prior, &disc);
-            let table = problem.table(disc.angle_steps as usize + 1);
+            let problem = SearchProblem::new(&points, &image, &prior, disc);
+            let table = problem.table(angle_index);
             assert!(
                 !table.inside.is_empty() && !table.edge.is_empty(),
                 "trial {trial}: both kinds of points"
             );
+            check(trial, &problem);
+        }
+    }
+
+    /// The four children's bounds read in one pass equal the bounds read
+    /// one by one, bit for bit, at every level and for points inside the
+    /// grid as well as at its edge.
+    #[test]
+    fn child_bounds_equal_the_single_bounds() {
+        let disc = Discretisation {
+            angle_step_rad: 0.03,
+            angle_steps: 2,
+            cells_x: 12,
+            cells_y: 9,
+        };
+        with_edge_problems(6, &disc, 3, |trial, problem| {
             for level in 0..problem.top_level {
                 let step = 1i32 << level;
                 for angle in -2..=2 {
@@ -766,33 +780,20 @@ mod tests {
                     }
                 }
             }
-        }
+        });
     }
 
     /// The nine leaves scored in one pass equal the leaves scored one by
     /// one, bit for bit, for points inside the grid as well as at its edge.
     #[test]
     fn nine_leaf_scores_equal_the_single_scores() {
-        let mut rng = ChaCha8Rng::seed_from_u64(7);
         let disc = Discretisation {
             angle_step_rad: 0.03,
             angle_steps: 2,
             cells_x: 6,
             cells_y: 5,
         };
-        for trial in 0..4 {
-            let (image, points) = random_image_and_scan(&mut rng, 0.4);
-            let prior = Se2::new(
-                rng.random_range(-1.0..1.0),
-                rng.random_range(-1.0..1.0),
-                0.2,
-            );
-            let problem = SearchProblem::new(&points, &image, &prior, &disc);
-            let table = problem.table(disc.angle_steps as usize);
-            assert!(
-                !table.inside.is_empty() && !table.edge.is_empty(),
-                "trial {trial}: both kinds of points"
-            );
+        with_edge_problems(7, &disc, 2, |trial, problem| {
             for angle in -2..=2 {
                 for dx0 in -disc.cells_x..=disc.cells_x - 2 {
                     for dy0 in -disc.cells_y..=disc.cells_y - 2 {
@@ -809,7 +810,7 @@ mod tests {
                     }
                 }
             }
-        }
+        });
     }
 
     /// A random sparse image, a random scan and a window: branch-and-bound
