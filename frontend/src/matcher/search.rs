@@ -395,7 +395,7 @@ impl<'a> SearchProblem<'a> {
     /// evaluates about as many nodes as the window has leaves (the bounds
     /// of a smooth image prune little in a window of a few cells). The
     /// new leaves around each leaf are scored nine at a time where they
-    /// can be ([`SearchProblem::nine_leaf_scores`]): one densification
+    /// can be (`SearchProblem::nine_leaf_scores`): one densification
     /// match (`match_scan/pipeline_local_0.5m_3deg`, climb and covariance)
     /// took 1.60 M instructions with single leaves and takes 1.37 M.
     pub fn local_max(&self, stats: &mut SearchStats) -> Option<Leaf> {
