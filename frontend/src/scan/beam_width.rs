@@ -61,6 +61,25 @@
 //! image of another rotation. A stronger incidence term
 //! (`backscatter_exponent` 8 or 16) shrinks the error but did not improve
 //! the trajectories (St Pere, marina and canyon runs, 2026-12-02).
+//!
+//! **In the whole pipeline.** With exact navigation the beam width is the
+//! largest error left: marina seed 8 simulated with
+//! `tools/configs/sim/exact_navigation.toml` ends at 0.446 m ATE (dead
+//! reckoning 0.060 m), and at 0.111 m with a 0.57° beam
+//! (`exact_navigation_narrow_beam.toml`). A stronger correction helps
+//! there but not on the realistic missions, whose navigation errors
+//! distort the scans more (mean ATE of marina seeds 1-10 and St Pere seeds
+//! 1-6 with the default navigation noise; `echofield run --config` with
+//! `backscatter_exponent` changed, 2026-12-03):
+//!
+//! | `backscatter_exponent` | marina 8, exact navigation | marina 1-10 | St Pere 1-6 |
+//! |---|---:|---:|---:|
+//! | correction off | 0.517 m | | |
+//! | 2 (default) | 0.446 m | 0.294 m | 0.198 m |
+//! | 4 | | 0.292 m | 0.203 m |
+//! | 8 | 0.378 m | 0.291 m | 0.205 m |
+//! | 20 | 0.242 m | 0.305 m | 0.238 m |
+//! | 30 | 0.226 m | 0.381 m | 0.263 m |
 
 use crate::error::FrontendError;
 use echofield_graph::Se2;

@@ -156,6 +156,34 @@ mod tests {
         assert!(!dir.path().join("x.mcap").exists() && !dir.path().join("y.mcap").exists());
     }
 
+    /// The shipped simulator configs of the README's known limits change
+    /// exactly what their comments say, and nothing else.
+    #[test]
+    fn shipped_sim_configs_change_only_what_they_say() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/sim");
+        let mut exact = SimConfig::default();
+        exact.dvl.time_jitter_s = 0.0;
+        exact.dvl.noise_std_mps = 0.0;
+        exact.dvl.vertical_noise_std_mps = 0.0;
+        exact.dvl.scale_error = 0.0;
+        exact.dvl.invalid_probability = 0.0;
+        exact.dvl.gap_rate_per_hour = 0.0;
+        exact.heading.yaw_noise_std_rad = 0.0;
+        exact.heading.yaw_bias_rad = 0.0;
+        exact.heading.yaw_drift_std_rad = 0.0;
+        exact.heading.yaw_rate_noise_std_radps = 0.0;
+        let mut narrow = exact.clone();
+        narrow.sonar.beam_width_rad = 0.01;
+        for (file, want) in [
+            ("exact_navigation.toml", exact),
+            ("exact_navigation_narrow_beam.toml", narrow),
+        ] {
+            let got = read_config(&dir.join(file)).unwrap();
+            got.validate().unwrap();
+            assert_eq!(got, want, "{file}");
+        }
+    }
+
     #[test]
     fn data_folder_only_goes_with_the_replay() {
         let dir = tempfile::tempdir().unwrap();
