@@ -26,16 +26,27 @@ use echofield::slam::outputs::precision_recall::{Direction, evaluate_loops_dir};
 /// | 0.3 | 4        | 3  | 3/4       | 3/4    | 3/4    |
 /// | 0.5 | 5        | 4  | 4/5       | 1      | 8/9    |  <- best
 /// | 0.6 | 6        | 4  | 2/3       | 1      | 4/5    |
+///
+/// inside_fraction (accept when >= t):
+///
+/// | t    | accepted | TP | precision | recall | F1     |
+/// |------|----------|----|-----------|--------|--------|
+/// | 1.0  | 1        | 1  | 1         | 1/4    | 2/5    |
+/// | 0.95 | 2        | 1  | 1/2       | 1/4    | 1/3    |
+/// | 0.9  | 3        | 1  | 1/3       | 1/4    | 2/7    |
+/// | 0.8  | 4        | 2  | 1/2       | 1/2    | 1/2    |
+/// | 0.6  | 6        | 4  | 2/3       | 1      | 4/5    |  <- best
+/// | 0.5  | 7        | 4  | 4/7       | 1      | 8/11   |
 const LOOPS_CSV: &str = "\
-from,to,accepted,rejected_by,matched,mean_intensity,second_peak_ratio,gt_correct,verdict
-0,20,true,,true,0.9,0.2,true,tp
-1,21,true,,true,0.8,0.5,true,tp
-2,22,true,,true,0.7,0.1,false,fp
-3,23,false,quality,true,0.6,0.3,true,fn
-4,24,false,quality,true,0.5,0.6,false,tn
-5,25,false,quality,true,0.5,0.3,true,fn
-6,26,false,no_match,false,,,,
-7,27,false,quality,true,0.3,,false,tn
+from,to,accepted,rejected_by,matched,mean_intensity,second_peak_ratio,gt_correct,verdict,inside_fraction
+0,20,true,,true,0.9,0.2,true,tp,1.0
+1,21,true,,true,0.8,0.5,true,tp,0.6
+2,22,true,,true,0.7,0.1,false,fp,0.9
+3,23,false,quality,true,0.6,0.3,true,fn,0.8
+4,24,false,quality,true,0.5,0.6,false,tn,0.5
+5,25,false,quality,true,0.5,0.3,true,fn,0.6
+6,26,false,no_match,false,,,,,
+7,27,false,quality,true,0.3,,false,tn,0.95
 ";
 
 fn assert_point(
@@ -60,7 +71,7 @@ fn sweep_matches_the_hand_computed_curve() {
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(dir.path().join("loops.csv"), LOOPS_CSV).unwrap();
     let result = evaluate_loops_dir(dir.path(), None).unwrap();
-    assert_eq!(result.sweeps.len(), 2);
+    assert_eq!(result.sweeps.len(), 3);
     // The run's own gate: 3 accepted, 2 of them right, of 4 correct.
     assert_eq!(result.current_gate, (3, 2, 4));
 
@@ -101,6 +112,26 @@ fn sweep_matches_the_hand_computed_curve() {
         assert_point(p, e);
     }
     assert_eq!(peak.best_point().unwrap().threshold, 0.5);
+
+    let inside = &result.sweeps[2];
+    assert_eq!(
+        (inside.metric, inside.direction),
+        ("inside_fraction", Direction::AtLeast)
+    );
+    assert_eq!((inside.candidates, inside.positives), (7, 4));
+    let expected = [
+        (1.0, 1, 1, 1.0, 0.25, 0.4),
+        (0.95, 2, 1, 0.5, 0.25, 1.0 / 3.0),
+        (0.9, 3, 1, 1.0 / 3.0, 0.25, 2.0 / 7.0),
+        (0.8, 4, 2, 0.5, 0.5, 0.5),
+        (0.6, 6, 4, 2.0 / 3.0, 1.0, 0.8),
+        (0.5, 7, 4, 4.0 / 7.0, 1.0, 8.0 / 11.0),
+    ];
+    assert_eq!(inside.points.len(), expected.len());
+    for (p, e) in inside.points.iter().zip(expected) {
+        assert_point(p, e);
+    }
+    assert_eq!(inside.best_point().unwrap().threshold, 0.6);
     assert_eq!(
         peak.summary(),
         "second_peak_ratio: best F1 0.889 at second_peak_ratio <= 0.5: precision 0.800, recall 1.000 (5 accepted, 1 false)"
@@ -114,7 +145,7 @@ fn sweep_matches_the_hand_computed_curve() {
         "metric,direction,threshold,accepted,true_positives,false_positives,precision,recall,f1"
     );
     let rows: Vec<&str> = lines.collect();
-    assert_eq!(rows.len(), 11);
+    assert_eq!(rows.len(), 17);
     let check = |row: &str, head: &str, numbers: [f64; 3]| {
         let fields: Vec<&str> = row.split(',').collect();
         assert_eq!(fields[..6].join(","), head);
@@ -134,6 +165,11 @@ fn sweep_matches_the_hand_computed_curve() {
         rows[9],
         "second_peak_ratio,at_most,0.5,5,4,1",
         [0.8, 1.0, 8.0 / 9.0],
+    );
+    check(
+        rows[15],
+        "inside_fraction,at_least,0.6,6,4,2",
+        [2.0 / 3.0, 1.0, 0.8],
     );
     let png = image::open(dir.path().join("loops_pr.png")).unwrap();
     assert_eq!((png.width(), png.height()), (900, 700));

@@ -6,7 +6,11 @@
 //! - `mean_intensity`: `s(x*) / N`, the mean image value under the scan
 //!   points at the optimum (eq. 5 normalised; accept when `≥ t`);
 //! - `second_peak_ratio`: best score outside the peak's neighbourhood over
-//!   the best score (accept when `≤ t`: a distinct peak).
+//!   the best score (accept when `≤ t`: a distinct peak);
+//! - `inside_fraction`: the fraction of the scan points inside the image at
+//!   the optimum (accept when `≥ t`). On the simulated marina nearly every
+//!   pair of ground-truth overlap ≥ 0.4 that the pipeline's quality gate
+//!   rejects fails this test, not the intensity one (`loops.min_inside_fraction`).
 //!
 //! Only candidates with a ground-truth verdict (`gt_correct`, i.e. matched
 //! and covered by ground truth) enter the sweep. A candidate is *positive*
@@ -54,7 +58,7 @@ pub struct GateMetric {
 }
 
 /// The metrics `eval-loops` sweeps.
-pub const METRICS: [GateMetric; 2] = [
+pub const METRICS: [GateMetric; 3] = [
     GateMetric {
         name: "mean_intensity",
         direction: Direction::AtLeast,
@@ -66,6 +70,12 @@ pub const METRICS: [GateMetric; 2] = [
         direction: Direction::AtMost,
         value: |r| r.second_peak_ratio,
         absent_when: Some("it is measured only with `[matcher] second_peak = true`"),
+    },
+    GateMetric {
+        name: "inside_fraction",
+        direction: Direction::AtLeast,
+        value: |r| r.inside_fraction,
+        absent_when: None,
     },
 ];
 
