@@ -66,6 +66,22 @@ fn assert_point(
     }
 }
 
+/// One sweep: its metric and direction, every point (see [`assert_point`])
+/// and the threshold of its best F1.
+fn assert_sweep(
+    sweep: &echofield::slam::outputs::precision_recall::PrSweep,
+    metric: (&str, Direction),
+    expected: &[(f64, usize, usize, f64, f64, f64)],
+    best_threshold: f64,
+) {
+    assert_eq!((sweep.metric, sweep.direction), metric);
+    assert_eq!(sweep.points.len(), expected.len(), "{}", metric.0);
+    for (p, &e) in sweep.points.iter().zip(expected) {
+        assert_point(p, e);
+    }
+    assert_eq!(sweep.best_point().unwrap().threshold, best_threshold);
+}
+
 #[test]
 fn sweep_matches_the_hand_computed_curve() {
     let dir = tempfile::tempdir().unwrap();
@@ -76,66 +92,54 @@ fn sweep_matches_the_hand_computed_curve() {
     assert_eq!(result.current_gate, (3, 2, 4));
 
     let mean = &result.sweeps[0];
-    assert_eq!(
-        (mean.metric, mean.direction),
-        ("mean_intensity", Direction::AtLeast)
+    assert_sweep(
+        mean,
+        ("mean_intensity", Direction::AtLeast),
+        &[
+            (0.9, 1, 1, 1.0, 0.25, 0.4),
+            (0.8, 2, 2, 1.0, 0.5, 2.0 / 3.0),
+            (0.7, 3, 2, 2.0 / 3.0, 0.5, 4.0 / 7.0),
+            (0.6, 4, 3, 0.75, 0.75, 0.75),
+            (0.5, 6, 4, 2.0 / 3.0, 1.0, 0.8),
+            (0.3, 7, 4, 4.0 / 7.0, 1.0, 8.0 / 11.0),
+        ],
+        0.5,
     );
     assert_eq!((mean.candidates, mean.positives), (7, 4));
-    let expected = [
-        (0.9, 1, 1, 1.0, 0.25, 0.4),
-        (0.8, 2, 2, 1.0, 0.5, 2.0 / 3.0),
-        (0.7, 3, 2, 2.0 / 3.0, 0.5, 4.0 / 7.0),
-        (0.6, 4, 3, 0.75, 0.75, 0.75),
-        (0.5, 6, 4, 2.0 / 3.0, 1.0, 0.8),
-        (0.3, 7, 4, 4.0 / 7.0, 1.0, 8.0 / 11.0),
-    ];
-    assert_eq!(mean.points.len(), expected.len());
-    for (p, e) in mean.points.iter().zip(expected) {
-        assert_point(p, e);
-    }
-    assert_eq!(mean.best_point().unwrap().threshold, 0.5);
 
     let peak = &result.sweeps[1];
-    assert_eq!(
-        (peak.metric, peak.direction),
-        ("second_peak_ratio", Direction::AtMost)
+    assert_sweep(
+        peak,
+        ("second_peak_ratio", Direction::AtMost),
+        &[
+            (0.1, 1, 0, 0.0, 0.0, 0.0),
+            (0.2, 2, 1, 0.5, 0.25, 1.0 / 3.0),
+            (0.3, 4, 3, 0.75, 0.75, 0.75),
+            (0.5, 5, 4, 0.8, 1.0, 8.0 / 9.0),
+            (0.6, 6, 4, 2.0 / 3.0, 1.0, 0.8),
+        ],
+        0.5,
     );
-    let expected = [
-        (0.1, 1, 0, 0.0, 0.0, 0.0),
-        (0.2, 2, 1, 0.5, 0.25, 1.0 / 3.0),
-        (0.3, 4, 3, 0.75, 0.75, 0.75),
-        (0.5, 5, 4, 0.8, 1.0, 8.0 / 9.0),
-        (0.6, 6, 4, 2.0 / 3.0, 1.0, 0.8),
-    ];
-    assert_eq!(peak.points.len(), expected.len());
-    for (p, e) in peak.points.iter().zip(expected) {
-        assert_point(p, e);
-    }
-    assert_eq!(peak.best_point().unwrap().threshold, 0.5);
-
-    let inside = &result.sweeps[2];
-    assert_eq!(
-        (inside.metric, inside.direction),
-        ("inside_fraction", Direction::AtLeast)
-    );
-    assert_eq!((inside.candidates, inside.positives), (7, 4));
-    let expected = [
-        (1.0, 1, 1, 1.0, 0.25, 0.4),
-        (0.95, 2, 1, 0.5, 0.25, 1.0 / 3.0),
-        (0.9, 3, 1, 1.0 / 3.0, 0.25, 2.0 / 7.0),
-        (0.8, 4, 2, 0.5, 0.5, 0.5),
-        (0.6, 6, 4, 2.0 / 3.0, 1.0, 0.8),
-        (0.5, 7, 4, 4.0 / 7.0, 1.0, 8.0 / 11.0),
-    ];
-    assert_eq!(inside.points.len(), expected.len());
-    for (p, e) in inside.points.iter().zip(expected) {
-        assert_point(p, e);
-    }
-    assert_eq!(inside.best_point().unwrap().threshold, 0.6);
     assert_eq!(
         peak.summary(),
         "second_peak_ratio: best F1 0.889 at second_peak_ratio <= 0.5: precision 0.800, recall 1.000 (5 accepted, 1 false)"
     );
+
+    let inside = &result.sweeps[2];
+    assert_sweep(
+        inside,
+        ("inside_fraction", Direction::AtLeast),
+        &[
+            (1.0, 1, 1, 1.0, 0.25, 0.4),
+            (0.95, 2, 1, 0.5, 0.25, 1.0 / 3.0),
+            (0.9, 3, 1, 1.0 / 3.0, 0.25, 2.0 / 7.0),
+            (0.8, 4, 2, 0.5, 0.5, 0.5),
+            (0.6, 6, 4, 2.0 / 3.0, 1.0, 0.8),
+            (0.5, 7, 4, 4.0 / 7.0, 1.0, 8.0 / 11.0),
+        ],
+        0.6,
+    );
+    assert_eq!((inside.candidates, inside.positives), (7, 4));
 
     // The CSV holds the same numbers; the PNG decodes.
     let csv = std::fs::read_to_string(dir.path().join("loops_pr.csv")).unwrap();
