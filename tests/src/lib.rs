@@ -50,3 +50,26 @@ pub fn miniking_config() -> MatchingConfig {
     config.segmentation.min_intensity = 0.0;
     config
 }
+
+/// The least-squares scale `s` of `t_true ≈ s · t_odo` over the odometry
+/// edges of a run's graph, with the true motion from `truth` (one pose per
+/// node, `None` where unknown; edges touching such a node are left out):
+/// what the run's `dead_reckoning.odometry_scale` estimates from the
+/// optimised poses, computed here from ground truth alone.
+pub fn ground_truth_odometry_scale(
+    graph: &echofield_graph::PoseGraph,
+    truth: &[Option<echofield_graph::Se2>],
+) -> f64 {
+    let (mut rz, mut zz) = (0.0, 0.0);
+    for (from, to, edge) in graph.indexed_edges() {
+        if edge.kind != echofield_graph::EdgeKind::Odometry {
+            continue;
+        }
+        if let (Some(a), Some(b)) = (truth[from], truth[to]) {
+            let z = edge.measurement.translation();
+            rz += a.between(&b).translation().dot(&z);
+            zz += z.norm_squared();
+        }
+    }
+    rz / zz
+}

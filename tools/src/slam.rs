@@ -50,6 +50,7 @@ pub mod estimate;
 pub mod evaluation;
 pub mod loops;
 pub mod nodes;
+pub mod odometry_scale;
 pub mod outputs;
 pub mod refine;
 pub mod result;

@@ -11,7 +11,7 @@ use super::result::{
     DEAD_RECKONING_RATE_HZ, DeadReckoningReport, NodeRecord, ROBUST_WEIGHT_REJECTED, RejectReason,
     Report, SequentialRecord, SkippedRotation, SlamOutput, SolverReport, StageTimings, TimeGap,
 };
-use super::{ProgressSink, SlamError, check_sensors, sequential};
+use super::{ProgressSink, SlamError, check_sensors, odometry_scale, sequential};
 use echofield_backend::edge_error;
 use echofield_frontend::dead_reckoning::{self, Navigation};
 use echofield_frontend::rotation::{Rotation, assemble_rotations};
@@ -122,6 +122,8 @@ fn run(
         .collect();
     let time_gaps = time_gaps(&navigation, &nodes, &mut warnings);
     yaw_rate_warning(&navigation, &config.dead_reckoning, &mut warnings);
+    let odometry_scale = odometry_scale::odometry_scale(&graph);
+    warnings.extend(odometry_scale.as_ref().and_then(odometry_scale::warning));
     let mut loops = std::mem::take(&mut closer.records);
     let mut report = Report {
         mission: mission.name.clone(),
@@ -164,6 +166,7 @@ fn run(
             dvl_gated: navigation.dvl_gated(),
             yaw_rate_noise_radps: navigation.yaw_rate_noise_radps(),
             yaw_rate_check: navigation.yaw_rate_check().copied(),
+            odometry_scale,
         },
         warnings,
         ate_rmse_m: None,

@@ -10,6 +10,7 @@
 //! evaluation aligns the estimate to it (SE(2), see [`crate::eval`]).
 
 use super::config::SlamConfig;
+use super::odometry_scale::OdometryScale;
 use crate::eval::{AteStats, RpeStats};
 use echofield_backend::SolveSummary;
 use echofield_frontend::dead_reckoning::gyro_check::YawRateCheck;
@@ -354,6 +355,10 @@ pub struct DeadReckoningReport {
     /// The yaw-rate check (`dead_reckoning.yaw_rate_check_window_s`); none
     /// when it was off or the attitude unit gives no yaw rates.
     pub yaw_rate_check: Option<YawRateCheck>,
+    /// The optimised motion against the odometry edges' (a check of the
+    /// DVL's scale, [`super::odometry_scale`]); none when the vehicle
+    /// hardly moved.
+    pub odometry_scale: Option<OdometryScale>,
 }
 
 /// The content of `report.json`.
