@@ -135,8 +135,17 @@ fn error_budget_reports_on_a_mission_file() {
             &serde_json::json!(["odometry"]),
             &serde_json::json!(["sequential"]),
             &serde_json::json!(["odometry", "sequential"]),
+            &serde_json::json!([]),
         ]
     );
+    // The last solve weakens the odometry and says so, in the JSON and in
+    // the table; every solve has a motion scale near 1.
+    assert_eq!(solves[4]["odometry_information_factor"], 0.01);
+    assert!(out.contains("odometry information × 0.01"), "{out}");
+    assert!(solves.iter().all(|s| {
+        let scale = s["motion_scale"].as_f64().unwrap();
+        (scale - 1.0).abs() < 0.2
+    }));
     // The graph solved again is the run's solution: its ATE is the one
     // the first line reports.
     let run_ate = number_after(&out, "run ATE");

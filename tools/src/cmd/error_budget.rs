@@ -27,7 +27,10 @@ the bias along the true displacement with its scale. The second solves the
 graph again with the measurements of some kinds replaced by their true
 values (information unchanged) and gives the ATE of each solve: what the
 errors of those kinds cost. With every kind replaced, what is left comes
-from the heading priors. The mission needs ground truth.";
+from the heading priors. Its last row keeps every measurement but divides
+the odometry's information by 100: the motion the sonar's edges make of
+the mission on their own. The motion scale of a solve is how far it moves
+against the truth (below 1: shorter). The mission needs ground truth.";
 
 #[derive(Debug, clap::Args)]
 #[command(after_help = EXAMPLES)]
@@ -86,9 +89,15 @@ fn table(budget: &ErrorBudget) -> String {
             100.0 * k.scale_error
         );
     }
-    s += "\n| measurements set to the ground truth | ATE RMSE (m) |\n|---|---|\n";
+    s +=
+        "\n| measurements set to the ground truth | ATE RMSE (m) | motion scale |\n|---|---|---|\n";
     for o in &budget.oracle_solves {
-        let replaced = if o.replaced.is_empty() {
+        let replaced = if o.odometry_information_factor != 1.0 {
+            format!(
+                "none, odometry information × {} (the sonar's own motion)",
+                o.odometry_information_factor
+            )
+        } else if o.replaced.is_empty() {
             "none (the graph solved again)".to_string()
         } else {
             o.replaced
@@ -97,7 +106,10 @@ fn table(budget: &ErrorBudget) -> String {
                 .collect::<Vec<_>>()
                 .join(", ")
         };
-        s += &format!("| {replaced} | {:.3} |\n", o.ate_rmse_m);
+        let scale = o
+            .motion_scale
+            .map_or("-".to_string(), |m| format!("{m:.4}"));
+        s += &format!("| {replaced} | {:.3} | {scale} |\n", o.ate_rmse_m);
     }
     s
 }

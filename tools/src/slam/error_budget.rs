@@ -23,7 +23,12 @@
 //!   SE(2) alignment, as `report.json`'s) shows what the errors of those
 //!   kinds cost. The first row solves the graph unchanged, for a like-for-
 //!   like reference; the last replaces every relative edge, so what it
-//!   leaves comes from the heading priors.
+//!   leaves comes from the heading priors. One more solve keeps every
+//!   measurement but divides the odometry's information by
+//!   [`WEAK_ODOMETRY`]: the motion the sonar's edges make of the mission
+//!   on their own. Each solve also gives the scale of its motion, the
+//!   least-squares `s` of `t ≈ s · t_true` over the consecutive nodes'
+//!   translations (below 1: the solution moves less than the vehicle).
 //!
 //! Edges with a node the ground truth does not cover keep their
 //! measurement and are left out of the statistics; the ATE is over the
@@ -41,6 +46,10 @@ use serde::Serialize;
 
 /// Edges shorter than this are left out of the along-track statistics, m.
 pub const MIN_SCALE_DISTANCE_M: f64 = 0.5;
+
+/// Factor on the odometry's information in the solve that shows the
+/// sonar's own motion.
+pub const WEAK_ODOMETRY: f64 = 0.01;
 
 /// The relative edge kinds of a SLAM graph, in table order.
 const RELATIVE_KINDS: [EdgeKind; 3] = [EdgeKind::Odometry, EdgeKind::Sequential, EdgeKind::Loop];
@@ -73,8 +82,13 @@ pub struct KindErrors {
 pub struct OracleSolve {
     /// The kinds whose measurements were replaced (none: the graph as is).
     pub replaced: Vec<EdgeKind>,
+    /// Factor on the odometry edges' information: 1, or [`WEAK_ODOMETRY`].
+    pub odometry_information_factor: f64,
     /// ATE RMSE of the solution, SE(2)-aligned, m.
     pub ate_rmse_m: f64,
+    /// Scale of the solution's motion against the true motion (module
+    /// doc); none with fewer than two consecutive nodes with ground truth.
+    pub motion_scale: Option<f64>,
 }
 
 /// The error budget of a run (module doc).
@@ -86,7 +100,8 @@ pub struct ErrorBudget {
     pub edges: Vec<KindErrors>,
     /// The graph as is; odometry, sequential and loop edges alone;
     /// sequential and loop; all three (variants reduced to the kinds
-    /// present, without repeats).
+    /// present, without repeats); last, the graph as is with the weakened
+    /// odometry.
     pub oracle_solves: Vec<OracleSolve>,
 }
 
@@ -141,12 +156,17 @@ pub fn budget(
     }
     let oracle_solves = variants
         .iter()
-        .map(|replaced| {
-            let mut g = with_true_measurements(graph, truth, replaced)?;
+        .map(|replaced| (replaced, 1.0))
+        .chain(std::iter::once((&Vec::new(), WEAK_ODOMETRY)))
+        .map(|(replaced, factor)| {
+            let mut g = with_true_measurements(graph, truth, replaced, factor)?;
             optimize(&mut g, solver)?;
+            let poses = g.poses();
             Ok(OracleSolve {
                 replaced: replaced.clone(),
-                ate_rmse_m: trajectory_error(&g.poses(), truth, stamps_s)?,
+                odometry_information_factor: factor,
+                ate_rmse_m: trajectory_error(&poses, truth, stamps_s)?,
+                motion_scale: motion_scale(&poses, truth),
             })
         })
         .collect::<Result<Vec<_>, SlamError>>()?;
@@ -223,11 +243,13 @@ fn kind_errors(graph: &PoseGraph, truth: &[Option<Se2>], kind: EdgeKind) -> Kind
 }
 
 /// A copy of `graph` whose edges of the kinds in `replaced` measure the
-/// ground-truth relative pose (where both nodes have one).
+/// ground-truth relative pose (where both nodes have one) and whose
+/// odometry edges' information is multiplied by `odometry_factor`.
 fn with_true_measurements(
     graph: &PoseGraph,
     truth: &[Option<Se2>],
     replaced: &[EdgeKind],
+    odometry_factor: f64,
 ) -> Result<PoseGraph, SlamError> {
     let mut g = PoseGraph::new();
     for node in graph.nodes() {
@@ -240,12 +262,30 @@ fn with_true_measurements(
         {
             edge.measurement = t;
         }
+        if edge.kind == EdgeKind::Odometry {
+            edge.information *= odometry_factor;
+        }
         g.add_edge(edge)?;
     }
     for &id in graph.fixed() {
         g.fix(id)?;
     }
     Ok(g)
+}
+
+/// The least-squares scale of the motion between consecutive `poses`
+/// against the true motion (module doc).
+fn motion_scale(poses: &[Se2], truth: &[Option<Se2>]) -> Option<f64> {
+    let (mut st, mut tt, mut pairs) = (0.0, 0.0, 0);
+    for (p, t) in poses.windows(2).zip(truth.windows(2)) {
+        if let [Some(t0), Some(t1)] = t {
+            let true_step = t0.between(t1).translation();
+            st += p[0].between(&p[1]).translation().dot(&true_step);
+            tt += true_step.norm_squared();
+            pairs += 1;
+        }
+    }
+    (pairs >= 2 && tt > 0.0).then(|| st / tt)
 }
 
 /// ATE RMSE (SE(2)-aligned) of `poses` against the nodes' ground truth.
@@ -370,14 +410,41 @@ mod tests {
                 .unwrap()
                 .ate_rmse_m
         };
-        assert_eq!(b.oracle_solves.len(), 6);
+        assert_eq!(b.oracle_solves.len(), 7);
         assert_eq!(b.edges.len(), 3);
-        // The long odometry pulls the solution away from the truth ...
+        // The long odometry pulls the solution away from the truth and
+        // makes it move too far ...
         assert!(ate(&[]) > 1e-3, "{:?}", b.oracle_solves);
+        let as_is = &b.oracle_solves[0];
+        assert!(as_is.replaced.is_empty() && as_is.odometry_information_factor == 1.0);
+        let long = as_is.motion_scale.unwrap();
+        assert!(long > 1.001 && long < SCALE, "{long}");
+        // ... less so with its information divided by 100, where the exact
+        // sequential edges hold the motion ...
+        let weak = b.oracle_solves.last().unwrap();
+        assert!(weak.replaced.is_empty() && weak.odometry_information_factor == WEAK_ODOMETRY);
+        let weak_scale = weak.motion_scale.unwrap();
+        assert!(
+            weak_scale > 1.0 && weak_scale - 1.0 < 0.05 * (long - 1.0),
+            "{weak_scale}"
+        );
+        assert!(
+            weak.ate_rmse_m < 0.1 * as_is.ate_rmse_m,
+            "{:?}",
+            b.oracle_solves
+        );
         // ... and nothing else does: with it set to the truth, every edge
         // agrees with the true poses.
         assert!(ate(&[EdgeKind::Odometry]) < 1e-6);
         assert!(ate(&RELATIVE_KINDS) < 1e-6);
+        for exact in &b.oracle_solves[1..6] {
+            if exact.replaced.contains(&EdgeKind::Odometry) {
+                assert!(
+                    (exact.motion_scale.unwrap() - 1.0).abs() < 1e-9,
+                    "{exact:?}"
+                );
+            }
+        }
         // The other kinds were exact already.
         let same = (ate(&[EdgeKind::Loop]) - ate(&[])).abs();
         assert!(same < 1e-9, "{:?}", b.oracle_solves);
@@ -394,7 +461,8 @@ mod tests {
         assert_eq!(kind(&b, EdgeKind::Odometry).edges, 18);
         assert_eq!(kind(&b, EdgeKind::Loop).edges, 1);
         // Without ground truth at node 12 nor 19 no loop is left: the loop
-        // kind and the solves that would only replace it go.
+        // kind and the solves that would only replace it go (the last one
+        // is the weakened odometry's).
         truth[12] = None;
         let b = budget(&graph, &truth, &stamps, &SolverConfig::default())
             .unwrap()
@@ -409,7 +477,8 @@ mod tests {
                 vec![],
                 vec![Odometry],
                 vec![Sequential],
-                vec![Odometry, Sequential]
+                vec![Odometry, Sequential],
+                vec![]
             ]
         );
         let none = vec![None; 20];

@@ -37,11 +37,11 @@
 //! motion-compensated with the dead reckoning, so the sonar's constraints
 //! carry part of its scale, and a 3° beam shortens them further: the
 //! graph solved again with the odometry's information divided by 100
-//! (`echofield optimize` on `graph.g2o` so edited) moves 0.13-0.37 % less
-//! than the truth on marina seeds 1, 5 and 8, and 0.48 % less with exact
-//! navigation (seed 8, `tools/configs/sim/exact_navigation.toml`), against
-//! 0.03 % with a 0.57° beam. The simulated DVL's default +1.5 % partly
-//! cancels that shortening. A DVL corrected by the check's own estimate
+//! (the last row of `echofield error-budget`) moves 0.17 / 0.41 / 0.31 %
+//! less than the truth on marina seeds 1 / 5 / 8, and 0.49 % less with
+//! exact navigation (seed 8, `tools/configs/sim/exact_navigation.toml`),
+//! against 0.04 % with a 0.57° beam. The simulated DVL's default +1.5 %
+//! partly cancels that shortening. A DVL corrected by the check's own estimate
 //! gave worse trajectories (a throwaway patch scaling the DVL samples:
 //! marina seeds 1 / 2 / 5 / 8, ATE 0.229 / 0.261 / 0.443 / 0.523 m →
 //! 0.332 / 0.368 / 0.539 / 0.624 m; St Pere seed 1 with the samples
