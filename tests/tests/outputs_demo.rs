@@ -53,4 +53,13 @@ fn demo_simulates_runs_and_writes_every_output() {
         text.contains("trajectory.png") && text.contains("mission.mcap"),
         "{text}"
     );
+    // And the DVL scale check, as the inverse of the report's scale.
+    let scale = report.dead_reckoning.odometry_scale.unwrap().scale;
+    let excess = 1.0 / scale - 1.0;
+    let words = format!("distances are {:.1} ± ", 100.0 * excess.abs());
+    let side = if excess >= 0.0 { "longer" } else { "shorter" };
+    assert!(
+        text.contains(&words) && text.contains(side),
+        "{words}, {side} in {text}"
+    );
 }

@@ -69,6 +69,18 @@ impl DemoSummary {
                  {rv:.2} of the revisits"
             ));
         }
+        if let Some(check) = r.dead_reckoning.odometry_scale {
+            // Dead reckoning over optimised distance is 1 / scale.
+            let excess = 1.0 / check.scale - 1.0;
+            let error = check.standard_error / check.scale.powi(2);
+            lines.push(format!(
+                "DVL scale check: dead reckoning's distances are {:.1} ± {:.1}% {} than the optimised ones \
+                 (report.json dead_reckoning.odometry_scale)",
+                100.0 * excess.abs(),
+                100.0 * error,
+                if excess >= 0.0 { "longer" } else { "shorter" }
+            ));
+        }
         let d = self.dir.display();
         lines.push(format!(
             "look at {d}/trajectory.png, {d}/loops.png and {d}/mosaic.png; \
