@@ -53,6 +53,26 @@ fn demo_simulates_runs_and_writes_every_output() {
         text.contains("trajectory.png") && text.contains("mission.mcap"),
         "{text}"
     );
+    // The loops' precision and recall, and the recall budget's ceiling.
+    let loops = report.loop_summary().unwrap();
+    let ceiling = report
+        .loop_evaluation
+        .as_ref()
+        .unwrap()
+        .recall_budget
+        .gate_ceiling
+        .unwrap();
+    assert!(text.contains(&loops), "{text}");
+    for number in [
+        report.loop_precision.unwrap(),
+        report.loop_recall.unwrap(),
+        ceiling,
+    ] {
+        assert!(
+            loops.contains(&format!("{number:.3}")),
+            "{number} in {loops}"
+        );
+    }
     // And the DVL scale check, as the inverse of the report's scale.
     let scale = report.dead_reckoning.odometry_scale.unwrap().scale;
     let excess = 1.0 / scale - 1.0;

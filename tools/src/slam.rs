@@ -65,8 +65,8 @@ pub use error::SlamError;
 pub use loops::LoopConfig;
 pub use pipeline::run_mission;
 pub use result::{
-    LoopRecord, NodeRecord, RecallBin, RejectReason, Report, SequentialRecord, SlamOutput,
-    StageTimings,
+    LoopRecord, NodeRecord, RecallBin, RecallBudget, RejectReason, Report, SequentialRecord,
+    SlamOutput, StageTimings,
 };
 
 use anyhow::{Context, Result, bail};

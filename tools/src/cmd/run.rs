@@ -74,6 +74,9 @@ pub fn run(args: Args) -> Result<()> {
     if let (Some(ate), Some(dr)) = (report.ate_rmse_m, report.ate_rmse_dead_reckoning_m) {
         println!("ATE RMSE {ate:.3} m (dead reckoning {dr:.3} m)");
     }
+    if let Some(line) = report.loop_summary() {
+        println!("{line}");
+    }
     for warning in &report.warnings {
         tracing::warn!("{warning}");
     }

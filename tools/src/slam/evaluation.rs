@@ -48,17 +48,26 @@
 //!   tenth wide from `recall_min_overlap` up. Pairs that share little are
 //!   the hard ones (the simulated marina, seed 1: 0.46 of the pairs of
 //!   overlap 0.4-0.5 against 0.93-1.0 from 0.7 up).
+//! - **Recall budget** (`loop_evaluation.recall_budget`): each recall pair
+//!   once, as recalled; matched right at least once but never accepted
+//!   right (`right_match_rejected`, by the check that rejected its last
+//!   right match); matched but never right (`matched_wrong`); or never
+//!   matched (`not_matched`). `gate_ceiling` is the recall if the checks
+//!   accepted every right match: what tuning `[loops]` can reach at best
+//!   with the same matches.
 
 use super::config::SlamConfig;
 use super::nodes::NodeData;
-use super::result::{LoopEvaluation, LoopRecord, NodeRecord, RecallBin, Report};
+use super::result::{
+    LoopEvaluation, LoopRecord, NodeRecord, RecallBin, RecallBudget, RejectReason, Report,
+};
 use crate::eval::{Alignment, ate, cumulative_distance, rpe};
 use crate::matching::ground_truth_at;
 use echofield_frontend::scan::Scan;
 use echofield_frontend::sensors::GroundTruthPose;
 use echofield_graph::Se2;
 use echofield_graph::io::TrajectoryPose;
-use std::collections::{BTreeMap, HashSet};
+use std::collections::{BTreeMap, HashMap, HashSet};
 
 /// Time tolerance of the ATE/RPE association between a node's pose and its
 /// ground truth: stamps of the same node agree exactly, so any small value
@@ -136,6 +145,14 @@ pub fn evaluate(
             }
         }
     }
+    let mut outcomes: HashMap<(usize, usize), Vec<MatchOutcome>> = HashMap::new();
+    for record in loops.iter() {
+        outcomes
+            .entry((record.from as usize, record.to as usize))
+            .or_default()
+            .push(MatchOutcome::of(record));
+    }
+    let mut budget = RecallBudget::default();
     let min_separation = config.loops.min_separation_nodes;
     let (mut recall_pairs, mut recalled_pairs) = (0, 0);
     let (mut recall_nodes, mut recalled_nodes) = (0, 0);
@@ -152,6 +169,8 @@ pub fn evaluate(
             let recalled = usize::from(true_positive_pairs.contains(&(j, k)));
             recall_pairs += 1;
             recalled_pairs += recalled;
+            let pair_outcomes = outcomes.get(&(j, k)).map_or(&[][..], Vec::as_slice);
+            budget.add(PairFate::of(pair_outcomes));
             // Overlaps are at most 1: past every bin's end is the last's.
             let bin = recall_by_overlap
                 .iter()
@@ -179,6 +198,8 @@ pub fn evaluate(
         1.0
     });
     report.loop_recall = (recall_pairs > 0).then(|| recalled_pairs as f64 / recall_pairs as f64);
+    budget.gate_ceiling = (recall_pairs > 0)
+        .then(|| (budget.recalled + budget.right_match_rejected) as f64 / recall_pairs as f64);
     report.loop_recall_revisits =
         (recall_nodes > 0).then(|| recalled_nodes as f64 / recall_nodes as f64);
     report.loop_evaluation = Some(LoopEvaluation {
@@ -194,8 +215,73 @@ pub fn evaluate(
         partial_false_positives: partial_fp,
         partial_constrained_correct: partial_constrained,
         recall_by_overlap,
+        recall_budget: budget,
     });
     report.definitions = definitions(config);
+}
+
+/// How one examined candidate of a node pair ended.
+#[derive(Clone, Copy, Debug)]
+struct MatchOutcome {
+    /// Its measurement within the true-positive tolerances; `None` when it
+    /// has no measurement (not searched, no match, no data).
+    right: Option<bool>,
+    accepted: bool,
+    rejected_by: Option<RejectReason>,
+}
+
+impl MatchOutcome {
+    fn of(record: &LoopRecord) -> Self {
+        Self {
+            right: record.true_positive,
+            accepted: record.accepted,
+            rejected_by: record.rejected_by,
+        }
+    }
+}
+
+/// What became of a recall pair, from its candidates' outcomes in the
+/// order they were examined.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum PairFate {
+    Recalled,
+    /// Matched right, never accepted right; the check that rejected the
+    /// last right match.
+    RightMatchRejected(Option<RejectReason>),
+    MatchedWrong,
+    NotMatched,
+}
+
+impl PairFate {
+    fn of(outcomes: &[MatchOutcome]) -> Self {
+        if outcomes.iter().any(|o| o.accepted && o.right == Some(true)) {
+            return Self::Recalled;
+        }
+        if let Some(last_right) = outcomes.iter().rev().find(|o| o.right == Some(true)) {
+            return Self::RightMatchRejected(last_right.rejected_by);
+        }
+        if outcomes.iter().any(|o| o.right.is_some()) {
+            Self::MatchedWrong
+        } else {
+            Self::NotMatched
+        }
+    }
+}
+
+impl RecallBudget {
+    fn add(&mut self, fate: PairFate) {
+        match fate {
+            PairFate::Recalled => self.recalled += 1,
+            PairFate::RightMatchRejected(reason) => {
+                self.right_match_rejected += 1;
+                if let Some(reason) = reason {
+                    *self.right_match_rejected_by.entry(reason).or_default() += 1;
+                }
+            }
+            PairFate::MatchedWrong => self.matched_wrong += 1,
+            PairFate::NotMatched => self.not_matched += 1,
+        }
+    }
 }
 
 /// Empty recall bins from `min_overlap` to 1, with edges at the tenths
@@ -346,6 +432,7 @@ fn definitions(config: &SlamConfig) -> BTreeMap<String, String> {
         ("loop_recall", format!("recall pairs joined by an accepted true-positive loop, over all recall pairs (while the mission runs each node is matched against at most {} older ones; with loops.densify the overlapping pairs left are matched after it)", config.loops.max_candidates_per_node)),
         ("partial_loop", format!("an accepted densified loop constrained across one horizontal direction and in heading only (loops.densify_partial); it is true or false by the whole-pose verdict like every loop, and `partial_constrained_correct` counts those whose error across that direction is within {} m and whose heading error is within {} deg", e.true_positive_translation_m, e.true_positive_rotation_deg)),
         ("loop_recall_revisits", "revisit nodes (the newer node of at least one recall pair) that are the newer node of an accepted true-positive loop, over all revisit nodes: how many returns to a known place were recognised".to_string()),
+        ("recall_budget", "loop_evaluation.recall_budget: each recall pair counted once as recalled; right_match_rejected (some match of the pair was within the true-positive tolerances, none of them accepted; by the check that rejected the last one); matched_wrong (matched, never right); not_matched (never a candidate, or never searched, or no match); gate_ceiling = (recalled + right_match_rejected) / recall pairs, the recall if the checks accepted every right match".to_string()),
         ("recall_by_overlap", "loop_evaluation.recall_by_overlap: the recall pairs and those recalled in bins of ground-truth scan overlap (edges at the tenths above the recall threshold; the last bin includes 1)".to_string()),
     ];
     entries
@@ -387,6 +474,86 @@ mod tests {
         let empty = OccupancyGrid::new(&scan(Vec::new()), 0.5);
         assert_eq!(empty.overlap(&scan(wall.clone()), &Se2::identity()), 0.0);
         assert_eq!(grid.overlap(&scan(Vec::new()), &Se2::identity()), 0.0);
+    }
+
+    fn outcome(right: Option<bool>, rejected_by: Option<RejectReason>) -> MatchOutcome {
+        MatchOutcome {
+            right,
+            accepted: rejected_by.is_none() && right.is_some(),
+            rejected_by,
+        }
+    }
+
+    #[test]
+    fn each_recall_pair_has_one_fate() {
+        use RejectReason::*;
+        let fate = |outcomes: &[MatchOutcome]| PairFate::of(outcomes);
+        assert_eq!(fate(&[]), PairFate::NotMatched);
+        assert_eq!(
+            fate(&[outcome(None, Some(Deferred)), outcome(None, Some(NoMatch))]),
+            PairFate::NotMatched
+        );
+        assert_eq!(
+            fate(&[outcome(Some(false), Some(Quality))]),
+            PairFate::MatchedWrong
+        );
+        // A wrong match accepted is still a pair matched wrong.
+        assert_eq!(fate(&[outcome(Some(false), None)]), PairFate::MatchedWrong);
+        // Right in the mission, rejected; retried by densification and
+        // rejected again: the last right match's check counts.
+        assert_eq!(
+            fate(&[
+                outcome(Some(true), Some(Covariance)),
+                outcome(Some(false), Some(ReverseMismatch)),
+                outcome(Some(true), Some(Quality)),
+            ]),
+            PairFate::RightMatchRejected(Some(Quality))
+        );
+        // Any accepted right match recalls the pair, whatever came before.
+        assert_eq!(
+            fate(&[
+                outcome(Some(true), Some(Covariance)),
+                outcome(Some(true), None),
+            ]),
+            PairFate::Recalled
+        );
+        // Accepted, then dropped by the robust kernel: rejected.
+        let dropped = MatchOutcome {
+            right: Some(true),
+            accepted: false,
+            rejected_by: Some(RobustKernel),
+        };
+        assert_eq!(
+            fate(&[dropped]),
+            PairFate::RightMatchRejected(Some(RobustKernel))
+        );
+
+        let mut budget = RecallBudget::default();
+        for f in [
+            PairFate::Recalled,
+            PairFate::Recalled,
+            PairFate::RightMatchRejected(Some(Quality)),
+            PairFate::RightMatchRejected(Some(Quality)),
+            PairFate::RightMatchRejected(Some(Covariance)),
+            PairFate::RightMatchRejected(None),
+            PairFate::MatchedWrong,
+            PairFate::NotMatched,
+        ] {
+            budget.add(f);
+        }
+        assert_eq!(
+            (
+                budget.recalled,
+                budget.right_match_rejected,
+                budget.matched_wrong,
+                budget.not_matched
+            ),
+            (2, 4, 1, 1)
+        );
+        assert_eq!(
+            budget.right_match_rejected_by,
+            BTreeMap::from([(Quality, 2), (Covariance, 1)])
+        );
     }
 
     #[test]

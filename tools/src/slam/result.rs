@@ -330,6 +330,34 @@ pub struct LoopEvaluation {
     /// bins of a tenth from `evaluation.recall_min_overlap` up: how recall
     /// falls off as two scans share less.
     pub recall_by_overlap: Vec<RecallBin>,
+    /// Where the recall pairs went: recalled, lost by the gate, by the
+    /// matcher or before matching.
+    pub recall_budget: RecallBudget,
+}
+
+/// The recall pairs split by what became of them, each pair counted once
+/// (see `definitions` → `recall_budget`). Says whether a mission's recall
+/// is lost by the acceptance checks (tune `[loops]`, see `echofield
+/// eval-loops`), by the matcher, or before any match.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct RecallBudget {
+    /// Joined by an accepted true-positive loop (`recalled_pairs`).
+    pub recalled: usize,
+    /// Matched right at least once (within the true-positive tolerances)
+    /// but no right match accepted: what the checks cost.
+    pub right_match_rejected: usize,
+    /// ... by the check that rejected the last right match of each pair
+    /// (the densification pass comes after the mission's).
+    pub right_match_rejected_by: BTreeMap<RejectReason, usize>,
+    /// Matched, but never right: what the matcher cost.
+    pub matched_wrong: usize,
+    /// Never matched: not a candidate, never searched (`deferred`), or
+    /// no match or no data.
+    pub not_matched: usize,
+    /// `(recalled + right_match_rejected) / recall pairs`: the recall that
+    /// checks which accepted every right match would give on the same
+    /// matches. `None` without recall pairs.
+    pub gate_ceiling: Option<f64>,
 }
 
 /// Recall over the recall pairs whose ground-truth scan overlap lies in
@@ -440,4 +468,27 @@ pub struct Report {
     /// How each evaluation number is defined, in words.
     #[serde(skip_serializing_if = "BTreeMap::is_empty")]
     pub definitions: BTreeMap<String, String>,
+}
+
+impl Report {
+    /// One line on the loop closures against ground truth, for terminal
+    /// summaries: precision, recall over node pairs and revisits, and the
+    /// recall budget's gate ceiling. `None` without ground truth.
+    pub fn loop_summary(&self) -> Option<String> {
+        let (precision, recall) = (self.loop_precision?, self.loop_recall?);
+        let mut line = format!(
+            "loop closures: precision {precision:.3}, recall {recall:.3} of the overlapping node pairs"
+        );
+        if let Some(revisits) = self.loop_recall_revisits {
+            line += &format!(", {revisits:.3} of the revisits");
+        }
+        let budget = self.loop_evaluation.as_ref().map(|e| &e.recall_budget);
+        if let Some(ceiling) = budget.and_then(|b| b.gate_ceiling) {
+            line += &format!(
+                "; {ceiling:.3} if the checks accepted every right match \
+                 (report.json loop_evaluation.recall_budget)"
+            );
+        }
+        Some(line)
+    }
 }

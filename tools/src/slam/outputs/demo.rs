@@ -61,14 +61,7 @@ impl DemoSummary {
                 dr / ate.max(1e-9)
             ));
         }
-        if let (Some(p), Some(rc), Some(rv)) =
-            (r.loop_precision, r.loop_recall, r.loop_recall_revisits)
-        {
-            lines.push(format!(
-                "loop closures: precision {p:.3}, recall {rc:.2} of the overlapping node pairs, \
-                 {rv:.2} of the revisits"
-            ));
-        }
+        lines.extend(r.loop_summary());
         if let Some(check) = r.dead_reckoning.odometry_scale {
             // Dead reckoning over optimised distance is 1 / scale.
             let excess = 1.0 / check.scale - 1.0;
