@@ -154,7 +154,7 @@ pub fn evaluate(
     }
     let mut budget = RecallBudget::default();
     let min_separation = config.loops.min_separation_nodes;
-    let (mut recall_pairs, mut recalled_pairs) = (0, 0);
+    let mut recall_pairs = 0;
     let (mut recall_nodes, mut recalled_nodes) = (0, 0);
     let mut missed_revisits = Vec::new();
     let mut recall_by_overlap = overlap_bins(eval.recall_min_overlap);
@@ -166,11 +166,11 @@ pub fn evaluate(
                 continue;
             };
             revisit = true;
-            let recalled = usize::from(true_positive_pairs.contains(&(j, k)));
-            recall_pairs += 1;
-            recalled_pairs += recalled;
             let pair_outcomes = outcomes.get(&(j, k)).map_or(&[][..], Vec::as_slice);
-            budget.add(PairFate::of(pair_outcomes));
+            let fate = PairFate::of(pair_outcomes);
+            let recalled = usize::from(fate == PairFate::Recalled);
+            recall_pairs += 1;
+            budget.add(fate);
             // Overlaps are at most 1: past every bin's end is the last's.
             let bin = recall_by_overlap
                 .iter()
@@ -197,6 +197,7 @@ pub fn evaluate(
     } else {
         1.0
     });
+    let recalled_pairs = budget.recalled;
     report.loop_recall = (recall_pairs > 0).then(|| recalled_pairs as f64 / recall_pairs as f64);
     budget.gate_ceiling = (recall_pairs > 0)
         .then(|| (budget.recalled + budget.right_match_rejected) as f64 / recall_pairs as f64);
