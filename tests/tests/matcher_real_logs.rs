@@ -163,6 +163,16 @@ fn ping360_known_offsets_are_recovered_on_its_own_image() {
 ///   log) by `echofield_frontend::sweep_lag::estimate_sweep_lag`.
 ///   Correcting it (`correct_sweep_lag`) does not change the picture here.
 ///
+/// - The source's two other static logs, not committed
+///   (`datasets/msis-real/README.md`), cannot stand in: at 60 m they hold
+///   2.07 and 2.55 turns, but their echoes lie within about 3 m of the head
+///   (tens to a few hundred scan points over speckle). Matched with blind
+///   zones of 1-2 m and intensity floors of 50-100 (2026-12-04, `echofield
+///   match --window 1,1,15`), rotation 1 against 0 and 0 against 1 do not
+///   agree with each other: +7.0° to +9.2° against -1.0° to +1.6° on
+///   `20210829-001755317`, -5.3° to -15.1° against +9.2° to +10.3° (and
+///   0.2-1.1 m) on `20200926-110158491`.
+///
 /// Kept to measure progress should a static Ping360 log with two full turns
 /// of persistent structure be added.
 #[test]
