@@ -267,7 +267,9 @@ fn marina_mission_is_five_times_better_than_dead_reckoning() {
             .unwrap()
             .between(&truth_at(truth, b).unwrap())
             .between(&measurement);
-        if error.translation().norm() <= 0.5 && error.theta().abs().to_degrees() <= 3.0 {
+        if error.translation().norm() <= config.evaluation.true_positive_translation_m
+            && error.theta().abs().to_degrees() <= config.evaluation.true_positive_rotation_deg
+        {
             *right_pairs.entry((l.from, l.to)).or_insert(false) |= l.accepted;
         }
     }
