@@ -66,8 +66,10 @@
 mod dead_reckoning;
 mod dgps;
 mod dvl;
+pub mod keyframes;
 mod local_frame;
 mod mti;
+pub mod point_bands;
 mod sonar;
 mod text;
 
@@ -80,7 +82,9 @@ pub use sonar::{BeamStamp, SonarSetup};
 pub use text::{SkipReason, SkippedLine};
 
 use crate::error::DatasetError;
-use echofield_frontend::sensors::{Attitude, GroundTruthPose, Mission, SensorMounting};
+use echofield_frontend::sensors::{
+    Attitude, GroundTruthPose, Mission, MountingSource, SensorMounting, SweepTiming,
+};
 use echofield_graph::{Se2, wrap_angle};
 use std::path::{Path, PathBuf};
 use text::TextLog;
@@ -186,6 +190,11 @@ pub fn read_stpere_dir(dir: &Path) -> Result<StPereLogs, DatasetError> {
             // The MTi yaw is stored as logged; this calibration (fitted
             // against DGPS, see the module doc) turns it into the heading.
             heading_offset_rad: MARINA_YAW_OFFSET_RAD,
+            // The head's pose is the public starter code's hint, and the
+            // angle and sweep conventions are the head's as logged: none
+            // of it verified (`echofield calibrate` checks them).
+            source: MountingSource::Assumed,
+            ..SensorMounting::default()
         },
         beams,
         dvl: dvl.samples,
@@ -202,6 +211,47 @@ pub fn read_stpere_dir(dir: &Path) -> Result<StPereLogs, DatasetError> {
         applied_yaw_offset_rad: 0.0,
         skipped,
     })
+}
+
+/// Reads a St Pere mission folder whose beams come from a folder of
+/// thresholded point sets (`keyFrameTimeStamps.csv` and `pclKeyFrameK.pcd`,
+/// see [`keyframes`]) instead of an `_IS.log`. The navigation folder must
+/// hold `_SETUP.log` and `_IS_timestamps.log`, and no `_IS.log` (two
+/// sources of beams would be ambiguous). The mission's
+/// `mounting.sweep` records the assumed `sweep`.
+pub fn read_stpere_with_keyframes(
+    nav_dir: &Path,
+    keyframe_dir: &Path,
+    sweep: SweepTiming,
+) -> Result<(StPereLogs, keyframes::KeyframeBeams), DatasetError> {
+    let files = find_files(nav_dir)?;
+    if let Some(beams) = &files.beams {
+        return Err(DatasetError::Format {
+            path: beams.clone(),
+            message: format!(
+                "the navigation folder holds raw beams and the keyframes in {} are beams                  too; give one of them",
+                keyframe_dir.display()
+            ),
+        });
+    }
+    let mut logs = read_stpere_dir(nav_dir)?;
+    let setup = logs
+        .sonar_setup
+        .clone()
+        .ok_or_else(|| DatasetError::Missing {
+            path: nav_dir.to_path_buf(),
+            what: "a `*_SETUP.log` file (the bin size and angle step of the point sets)".into(),
+        })?;
+    if logs.beam_stamps.is_empty() {
+        return Err(DatasetError::Missing {
+            path: nav_dir.to_path_buf(),
+            what: "a `*_IS_timestamps.log` file (the beam times of the point sets)".into(),
+        });
+    }
+    let kf = keyframes::read_keyframes(keyframe_dir, &setup, &logs.beam_stamps, sweep)?;
+    logs.mission.beams = kf.beams.clone();
+    logs.mission.mounting.sweep = sweep;
+    Ok((logs, kf))
 }
 
 /// DGPS positions with the offset-corrected MTi yaw (nearest-in-time linear

@@ -105,6 +105,7 @@ fn build_sk(c: &mut Criterion) {
         vehicle_from_sonar: Se2::new(0.33, 0.0, std::f64::consts::PI),
         vehicle_from_dvl: Se2::identity(),
         heading_offset_rad: 0.0,
+        ..Default::default()
     };
     let config = SegmentationConfig::default();
     let frames = reference_from_beams(&beams, &nav, &mounting, t_ref).unwrap();

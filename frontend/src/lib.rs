@@ -8,13 +8,16 @@ pub mod dead_reckoning;
 pub mod error;
 pub mod icp;
 pub mod image;
+pub mod intensity;
 pub mod matcher;
 pub mod motion;
+pub mod mounting;
 pub mod off_axis;
 pub mod rotation;
 pub mod scan;
 pub mod segmentation;
 pub mod sensors;
+pub mod sharpness;
 pub mod sweep_lag;
 
 pub use error::FrontendError;

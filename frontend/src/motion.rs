@@ -10,7 +10,7 @@
 //!
 //! ```text
 //! reference_from_beam = ⊖ world_from_vehicle(t_ref) ⊕ world_from_vehicle(t_beam)
-//!                       ⊕ vehicle_from_sonar ⊕ Rot(angle_rad)
+//!                       ⊕ vehicle_from_sonar ⊕ Rot(±angle_rad)
 //! ```
 //!
 //! `reference_from_beam` is the paper's `x_t^R` moved to the reference
@@ -59,13 +59,13 @@ pub fn reference_from_beams(
             // Eq. (4): compose the motion from the reference time to the beam time.
             Ok(reference_from_world
                 .compose(&world_from_vehicle)
-                .compose(&mounting.vehicle_from_sonar)
-                .compose(&Se2::new(0.0, 0.0, beam.angle_rad)))
+                .compose(&mounting.vehicle_from_beam(beam.angle_rad)))
         })
         .collect()
 }
 
-/// `vehicle_from_sonar ⊕ Rot(angle_rad)` for every beam: the beam frames
+/// `vehicle_from_sonar ⊕ Rot(±angle_rad)` for every beam (the sign from
+/// [`SensorMounting::sonar_angle`]): the beam frames
 /// without motion compensation (a vehicle that does not move, or the
 /// uncompensated baseline the paper's Fig. 4 improves on).
 pub fn uncompensated_reference_from_beams(
@@ -74,11 +74,7 @@ pub fn uncompensated_reference_from_beams(
 ) -> Vec<Se2> {
     beams
         .iter()
-        .map(|beam| {
-            mounting
-                .vehicle_from_sonar
-                .compose(&Se2::new(0.0, 0.0, beam.angle_rad))
-        })
+        .map(|beam| mounting.vehicle_from_beam(beam.angle_rad))
         .collect()
 }
 

@@ -82,12 +82,89 @@ pub struct GroundTruthPose {
     pub world_from_vehicle: Se2,
 }
 
-/// Where the sensors sit on the vehicle (2D: x, y in metres, yaw in rad).
+/// Which way a sonar head's transducer angle counts, seen from above (the
+/// vehicle's z axis up).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AngleDirection {
+    /// The angle grows counter-clockwise, like the vehicle's yaw (default).
+    #[default]
+    CounterClockwise,
+    /// The angle grows clockwise: a head mounted upside down, or one whose
+    /// driver counts the other way. The beam at angle `θ` points along
+    /// `vehicle_from_sonar ⊕ Rot(−θ)`.
+    Clockwise,
+}
+
+/// How each beam's stamp was obtained.
+///
+/// A head logs every beam with its own time ([`SweepTiming::Logged`]).
+/// Some published data keep only the points of each rotation (thresholded
+/// point sets); a reader that gives their beams back their times assigns
+/// the rotation's beam stamps in angle order from the beam at angle 0, and
+/// must assume which way the angle ran with time. A wrong assumption
+/// places every beam at the time of its mirror image in the rotation, so
+/// it is part of the mounting, overridable from `[mounting] sweep` and
+/// estimated by `echofield calibrate`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SweepTiming {
+    /// Every beam carries the stamp it was logged with (default).
+    #[default]
+    Logged,
+    /// Stamps reconstructed assuming the logged angle increases with time:
+    /// the `j`-th stamp of a rotation belongs to the beam at angle
+    /// `+j · step` (modulo a turn).
+    AngleIncreasing,
+    /// Stamps reconstructed assuming the logged angle decreases with time:
+    /// the `j`-th stamp of a rotation belongs to the beam at angle
+    /// `−j · step`.
+    AngleDecreasing,
+}
+
+/// Where a mission's [`SensorMounting`] came from.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MountingSource {
+    /// Recorded with the log (an echofield MCAP's metadata, a simulator);
+    /// the default.
+    #[default]
+    Recorded,
+    /// Filled in by a reader because the log holds none (the identity for
+    /// an MCAP without metadata, a published but unverified hint for the
+    /// St Pere logs). The pipeline warns about it.
+    Assumed,
+    /// Set by a `[mounting]` configuration (a user's, or the output of
+    /// `echofield calibrate`).
+    Config,
+}
+
+/// Where the sensors sit on the vehicle (2D: x, y in metres, yaw in rad),
+/// and the sonar head's angle and timing conventions.
+///
+/// ```text
+///            vehicle y (port)
+///                 ▲        sonar head at (x, y), its zero direction at
+///                 │          `yaw` from the vehicle's x axis; angle θ counts
+///                 │    θ ↺     counter-clockwise (or clockwise, inverted head)
+///                 │   ╱
+///                 │  ● ── ▶ head's angle zero (yaw)
+///                 │
+///                 └──────────────────▶ vehicle x (forward)
+/// ```
+///
+/// The beam at transducer angle `θ` points along `vehicle_from_sonar ⊕
+/// Rot(±θ)` (`+` counter-clockwise, `−` clockwise; see [`AngleDirection`]).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct SensorMounting {
-    /// Pose of the sonar head frame in the vehicle frame `[x, y, yaw]`.
+    /// Pose of the sonar head frame in the vehicle frame `[x, y, yaw]`:
+    /// the transducer's position and the direction of its angle zero.
     pub vehicle_from_sonar: Se2,
+    /// Which way the head's angle counts. Default counter-clockwise.
+    pub sonar_angle: AngleDirection,
+    /// How the beams' stamps were obtained. Default: logged.
+    pub sweep: SweepTiming,
     /// Pose of the DVL instrument frame in the vehicle frame `[x, y, yaw]`.
     pub vehicle_from_dvl: Se2,
     /// Added to every attitude yaw to obtain the vehicle heading in the
@@ -97,15 +174,50 @@ pub struct SensorMounting {
     /// on that mission); the dead reckoning adds its own
     /// `heading_offset_rad` on top.
     pub heading_offset_rad: f64,
+    /// Where these values came from.
+    pub source: MountingSource,
 }
 
 impl Default for SensorMounting {
     fn default() -> Self {
         Self {
             vehicle_from_sonar: Se2::identity(),
+            sonar_angle: AngleDirection::CounterClockwise,
+            sweep: SweepTiming::Logged,
             vehicle_from_dvl: Se2::identity(),
             heading_offset_rad: 0.0,
+            source: MountingSource::Recorded,
         }
+    }
+}
+
+impl SensorMounting {
+    /// The identity mounting, marked [`MountingSource::Assumed`]: what a
+    /// reader gives a log that records no mounting.
+    pub fn assumed_identity() -> Self {
+        Self {
+            source: MountingSource::Assumed,
+            ..Self::default()
+        }
+    }
+
+    /// The head's angle as a counter-clockwise angle in the sonar frame.
+    pub fn counter_clockwise_angle_rad(&self, angle_rad: f64) -> f64 {
+        match self.sonar_angle {
+            AngleDirection::CounterClockwise => angle_rad,
+            AngleDirection::Clockwise => -angle_rad,
+        }
+    }
+
+    /// `vehicle_from_sonar ⊕ Rot(±angle)`: the frame of the beam at
+    /// transducer angle `angle_rad` (origin at the transducer, x along the
+    /// beam) in the vehicle frame.
+    pub fn vehicle_from_beam(&self, angle_rad: f64) -> Se2 {
+        self.vehicle_from_sonar.compose(&Se2::new(
+            0.0,
+            0.0,
+            self.counter_clockwise_angle_rad(angle_rad),
+        ))
     }
 }
 

@@ -71,7 +71,7 @@ pub use result::{
 
 use anyhow::{Context, Result, bail};
 use echofield_datasets::{mcap, stpere};
-use echofield_frontend::sensors::Mission;
+use echofield_frontend::sensors::{Mission, SweepTiming};
 use std::path::Path;
 
 /// Progress of a run, for a progress bar. Every method has an empty
@@ -120,6 +120,44 @@ pub fn load_mission(path: &Path) -> Result<Mission> {
         );
     };
     Ok(mission)
+}
+
+/// The sweep a reader of point sets assumes when nothing says otherwise:
+/// the head's angle increasing with time.
+pub const DEFAULT_POINT_SET_SWEEP: SweepTiming = SweepTiming::AngleIncreasing;
+
+/// Reads a mission like [`load_mission`], or, with `keyframes`, a St Pere
+/// navigation folder (`path`) whose beams are rebuilt from the thresholded
+/// point sets in `keyframes`
+/// ([`echofield_datasets::stpere::keyframes`]) under the assumed `sweep`
+/// (`None`: [`DEFAULT_POINT_SET_SWEEP`]).
+pub fn load_mission_with_keyframes(
+    path: &Path,
+    keyframes: Option<&Path>,
+    sweep: Option<SweepTiming>,
+) -> Result<Mission> {
+    let Some(keyframes) = keyframes else {
+        return load_mission(path);
+    };
+    if !path.is_dir() {
+        bail!(
+            "--keyframes needs the St Pere navigation folder as the mission, and {} is not a folder",
+            path.display()
+        );
+    }
+    let sweep = match sweep {
+        None | Some(SweepTiming::Logged) => DEFAULT_POINT_SET_SWEEP,
+        Some(s) => s,
+    };
+    let (logs, _) =
+        stpere::read_stpere_with_keyframes(path, keyframes, sweep).with_context(|| {
+            format!(
+                "reading the St Pere logs in {} with the point sets in {}",
+                path.display(),
+                keyframes.display()
+            )
+        })?;
+    Ok(logs.mission)
 }
 
 /// Checks that the mission has the three streams the pipeline needs.

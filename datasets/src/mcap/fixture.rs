@@ -91,6 +91,7 @@ pub fn random_mission(n_beams: usize, n_bins: usize, seed: u64) -> Mission {
             vehicle_from_sonar: Se2::new(0.6, 0.0, std::f64::consts::PI),
             vehicle_from_dvl: Se2::new(-0.3, 0.05, 0.0),
             heading_offset_rad: 0.25,
+            ..Default::default()
         },
         beams,
         dvl,

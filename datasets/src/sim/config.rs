@@ -41,6 +41,7 @@ impl Default for SimConfig {
                 vehicle_from_sonar: Se2::new(0.33, 0.0, std::f64::consts::PI),
                 vehicle_from_dvl: Se2::identity(),
                 heading_offset_rad: 0.0,
+                ..Default::default()
             },
             vehicle: VehicleConfig::default(),
             sonar: SonarSimConfig::default(),

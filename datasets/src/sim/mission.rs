@@ -105,6 +105,7 @@ pub fn simulate_mission(scenario: &Scenario, seed: u64) -> Result<Mission, SimEr
             // calibration that relates it to the true heading travels with
             // the mission, as it would for a real vehicle.
             heading_offset_rad: scenario.heading_offset_rad().unwrap_or(0.0),
+            ..SensorMounting::default()
         },
         beams,
         dvl,

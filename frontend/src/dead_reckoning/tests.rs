@@ -81,6 +81,7 @@ fn dvl_mounting_rotation_and_lever_arm_are_compensated() {
             vehicle_from_sonar: Se2::identity(),
             vehicle_from_dvl: Se2::new(1.2, -0.4, std::f64::consts::FRAC_PI_2),
             heading_offset_rad: 0.0,
+            ..Default::default()
         },
         ..SyntheticNavConfig::default()
     };

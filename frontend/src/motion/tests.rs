@@ -35,6 +35,7 @@ fn beam_frames_follow_eq_4_for_a_vehicle_moving_forward() {
         vehicle_from_sonar: Se2::new(0.33, 0.0, PI),
         vehicle_from_dvl: Se2::identity(),
         heading_offset_rad: 0.0,
+        ..Default::default()
     };
     let beams = [beam(4.0, 0.0), beam(10.0, FRAC_PI_2), beam(16.0, -0.3)];
     let frames = reference_from_beams(&beams, &nav, &mounting, 10.0).unwrap();
@@ -96,6 +97,7 @@ fn compensated_wall_points_are_collinear_and_uncompensated_ones_are_not() {
         vehicle_from_sonar: Se2::new(0.5, 0.1, 0.2),
         vehicle_from_dvl: Se2::identity(),
         heading_offset_rad: 0.0,
+        ..Default::default()
     };
     let beams: Vec<SonarBeam> = (0..200)
         .map(|i| beam(i as f64 * 0.068, wrap_angle(i as f64 * PI / 100.0)))

@@ -5,7 +5,10 @@ use echofield_datasets::mcap::write_mission;
 use echofield_datasets::miniking::read_miniking_bag;
 use echofield_datasets::ping360::read_ping360;
 use echofield_datasets::sonar_recording::SonarRecording;
-use echofield_datasets::stpere::{MARINA_YAW_OFFSET_RAD, read_stpere_dir};
+use echofield_datasets::stpere::{
+    MARINA_YAW_OFFSET_RAD, read_stpere_dir, read_stpere_with_keyframes,
+};
+use echofield_frontend::sensors::SweepTiming;
 use echofield_graph::wrap_angle;
 use std::path::{Path, PathBuf};
 
@@ -28,6 +31,9 @@ Examples:
   # The heading calibration fitted against DGPS on the marina (+19.4 deg)
   # goes into the mission's mounting; the MTi yaw is written as logged:
   echofield convert stpere datasets/stpere-marina --output marina.mcap
+  # The real sonar's thresholded point sets (one PCD per rotation) as beams:
+  echofield convert stpere datasets/stpere-marina --keyframes datasets/stpere-marina-sonar \
+    --output real.mcap
   # Another calibration (0: use the MTi yaw as the heading):
   echofield convert stpere datasets/stpere-marina --yaw-offset-deg 0 --output raw.mcap
 
@@ -52,6 +58,17 @@ pub struct StPereArgs {
     /// Folder with the `<prefix>_DVL.log`, `_MTI.log`, `_DGPS.log` (and
     /// optional `_SETUP.log`, `_IS_timestamps.log`, `_IS.log`) files.
     pub dir: PathBuf,
+    /// A folder of thresholded sonar point sets of the same mission
+    /// (`keyFrameTimeStamps.csv` and `pclKeyFrameK.pcd`, one per
+    /// rotation): each point goes back to its beam and bin, beams without
+    /// points are kept empty. `DIR` must then hold `_SETUP.log` and
+    /// `_IS_timestamps.log`, and no `_IS.log`.
+    #[arg(long, value_name = "KF_DIR")]
+    pub keyframes: Option<PathBuf>,
+    /// With --keyframes: which way the head's angle ran with time, since
+    /// the point sets do not say (`echofield calibrate` tells).
+    #[arg(long, value_enum, default_value_t = Sweep::Increasing, requires = "keyframes")]
+    pub sweep: Sweep,
     /// Output MCAP file (written atomically).
     #[arg(short, long)]
     pub output: PathBuf,
@@ -61,6 +78,24 @@ pub struct StPereArgs {
     /// logged. Default: +19.4, fitted against DGPS on the marina mission.
     #[arg(long, default_value_t = MARINA_YAW_OFFSET_RAD.to_degrees(), allow_negative_numbers = true)]
     pub yaw_offset_deg: f64,
+}
+
+/// The assumed sweep of point sets (`--sweep`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Sweep {
+    /// The angle increases with time.
+    Increasing,
+    /// The angle decreases with time.
+    Decreasing,
+}
+
+impl From<Sweep> for SweepTiming {
+    fn from(s: Sweep) -> Self {
+        match s {
+            Sweep::Increasing => SweepTiming::AngleIncreasing,
+            Sweep::Decreasing => SweepTiming::AngleDecreasing,
+        }
+    }
 }
 
 #[derive(Debug, clap::Args)]
@@ -85,8 +120,25 @@ fn stpere(args: &StPereArgs) -> Result<()> {
         args.yaw_offset_deg.is_finite(),
         "--yaw-offset-deg must be finite"
     );
-    let mut logs = read_stpere_dir(&args.dir)
-        .with_context(|| format!("cannot read the St Pere logs in {}", args.dir.display()))?;
+    let (mut logs, keyframes) = match &args.keyframes {
+        None => (
+            read_stpere_dir(&args.dir).with_context(|| {
+                format!("cannot read the St Pere logs in {}", args.dir.display())
+            })?,
+            None,
+        ),
+        Some(kf_dir) => {
+            let (logs, kf) = read_stpere_with_keyframes(&args.dir, kf_dir, args.sweep.into())
+                .with_context(|| {
+                    format!(
+                        "cannot read the St Pere logs in {} with the point sets in {}",
+                        args.dir.display(),
+                        kf_dir.display()
+                    )
+                })?;
+            (logs, Some(kf))
+        }
+    };
     // The reader puts the marina calibration into the mounting; the
     // option replaces it there (adding it to the attitude as well would
     // correct the heading twice).
@@ -114,6 +166,19 @@ fn stpere(args: &StPereArgs) -> Result<()> {
         m.mounting.heading_offset_rad.to_degrees(),
         MARINA_YAW_OFFSET_RAD.to_degrees()
     );
+    if let Some(kf) = &keyframes {
+        let points: usize = kf.rotations.iter().map(|r| r.points).sum();
+        println!(
+            "  {} rotations ({}-{}) rebuilt from {points} points, stamps assigned with the angle {}",
+            kf.rotations.len(),
+            kf.rotations.first().map_or(0, |r| r.keyframe),
+            kf.rotations.last().map_or(0, |r| r.keyframe),
+            match kf.sweep {
+                SweepTiming::AngleDecreasing => "decreasing",
+                _ => "increasing",
+            }
+        );
+    }
     if m.beams.is_empty() {
         println!(
             "note: no _IS.log in {}, so the mission has no beams",

@@ -5,7 +5,7 @@
 
 use anyhow::{Context, Result};
 use echofield::slam::outputs::write_outputs;
-use echofield::slam::{ProgressSink, SlamConfig, load_mission, run_mission};
+use echofield::slam::{ProgressSink, SlamConfig, load_mission_with_keyframes, run_mission};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -22,10 +22,15 @@ Examples:
   # A St Pere log folder that holds the raw beams (_IS.log)
   echofield run path/to/stpere-logs --output out/stpere
 
+  # St Pere navigation with the sonar's thresholded point sets, and the
+  # mounting that `echofield calibrate` estimated
+  echofield run datasets/stpere-marina --keyframes datasets/stpere-marina-sonar \
+    --config cal.toml --output out/stpere-real
+
   # Make a mission to try it on
   echofield simulate --scenario marina --seed 1 --output marina.mcap
 
-The config sections are [dead_reckoning], [rotation], [segmentation],
+The config sections are [mounting], [dead_reckoning], [rotation], [segmentation],
 [image], [matcher], [sequential], [loops], [backend] and [evaluation]; see
 tools/configs/default.toml for every key with its default and unit. The
 effective config is written to OUTPUT/config.toml, the measured numbers to
@@ -40,6 +45,12 @@ pub struct Args {
     /// Pipeline configuration (TOML); defaults for missing keys.
     #[arg(long)]
     pub config: Option<PathBuf>,
+    /// With a St Pere navigation folder as the mission: a folder of
+    /// thresholded point sets (`keyFrameTimeStamps.csv`,
+    /// `pclKeyFrameK.pcd`) to rebuild the beams from, under the sweep of
+    /// the config's `[mounting] sweep` (default `angle_increasing`).
+    #[arg(long, value_name = "KF_DIR")]
+    pub keyframes: Option<PathBuf>,
     /// Output folder (created if needed).
     #[arg(long, short)]
     pub output: PathBuf,
@@ -53,7 +64,11 @@ pub fn run(args: Args) -> Result<()> {
     super::set_threads(args.threads)?;
     let config = SlamConfig::from_optional_toml_file(args.config.as_deref())?;
     let start = Instant::now();
-    let mission = load_mission(&args.mission)?;
+    let mission = load_mission_with_keyframes(
+        &args.mission,
+        args.keyframes.as_deref(),
+        config.mounting.sweep,
+    )?;
     let reading_s = start.elapsed().as_secs_f64();
     let progress = BarProgress::new();
     let mut output = run_mission(&mission, &config, &progress)

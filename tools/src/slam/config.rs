@@ -28,6 +28,7 @@ use echofield_backend::{Initialisation, RobustConfig, RobustKernel, SolverConfig
 use echofield_frontend::dead_reckoning::DeadReckoningConfig;
 use echofield_frontend::image::ImageConfig;
 use echofield_frontend::matcher::{MatcherConfig, SearchWindow};
+use echofield_frontend::mounting::MountingConfig;
 use echofield_frontend::rotation::RotationConfig;
 use echofield_frontend::segmentation::SegmentationConfig;
 use nalgebra::Matrix3;
@@ -38,6 +39,8 @@ use std::path::Path;
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct SlamConfig {
+    /// Overrides of the mission's sensor mounting (every key optional).
+    pub mounting: MountingConfig,
     /// The dead-reckoning EKF (noise, heading offset, extrapolation).
     pub dead_reckoning: DeadReckoningConfig,
     /// Cutting the beam stream into rotations.
@@ -71,6 +74,7 @@ impl Default for SlamConfig {
     /// loop matches, and the second search doubles the cost).
     fn default() -> Self {
         Self {
+            mounting: MountingConfig::default(),
             dead_reckoning: DeadReckoningConfig::default(),
             rotation: RotationConfig::default(),
             segmentation: SegmentationConfig::default(),
@@ -131,6 +135,7 @@ impl SlamConfig {
                 other => SlamError::config(name, other.to_string()),
             })
         };
+        section("mounting", self.mounting.validate())?;
         section("dead_reckoning", self.dead_reckoning.validate())?;
         section("rotation", self.rotation.validate())?;
         section("segmentation", self.segmentation.validate())?;

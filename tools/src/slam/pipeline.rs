@@ -14,11 +14,48 @@ use super::result::{
 use super::{ProgressSink, SlamError, check_sensors, odometry_scale, sequential};
 use echofield_backend::edge_error;
 use echofield_frontend::dead_reckoning::{self, Navigation};
+use echofield_frontend::intensity::{self, IntensityKind};
 use echofield_frontend::rotation::{Rotation, assemble_rotations};
-use echofield_frontend::sensors::Mission;
+use echofield_frontend::sensors::{AngleDirection, Mission, MountingSource, SensorMounting};
 use echofield_graph::{EdgeKind, PoseGraph, Se2};
+use std::borrow::Cow;
 use std::collections::BTreeMap;
 use std::time::Instant;
+
+/// Detects binary (thresholded) intensities and gives their bands the
+/// profiles of [`intensity::band_profiles`], so that scans and images are
+/// built from a likelihood field with a peak (see that module).
+fn scan_only_profiles(mission: Cow<'_, Mission>) -> (Cow<'_, Mission>, IntensityKind) {
+    let kind = intensity::detect(&mission.beams);
+    match kind {
+        IntensityKind::Binary { level } if std::env::var_os("EF_RAW_BANDS").is_none() => {
+            let mut owned = mission.into_owned();
+            intensity::band_profiles(&mut owned.beams, level);
+            (Cow::Owned(owned), kind)
+        }
+        _ => (mission, kind),
+    }
+}
+
+/// The warning of a run whose sonar mounting nobody gave: the scans land
+/// wherever the assumed mounting puts them, and a wrong one fails without
+/// any other sign.
+fn mounting_warning(mounting: &SensorMounting) -> Option<String> {
+    (mounting.source == MountingSource::Assumed).then(|| {
+        format!(
+            "the mission records no verified sensor mounting: the sonar head was assumed at \
+             ({:.2} m, {:.2} m), its angle zero at {:.1} deg, counting {}; give [mounting] in \
+             --config, or let `echofield calibrate` estimate it",
+            mounting.vehicle_from_sonar.x(),
+            mounting.vehicle_from_sonar.y(),
+            mounting.vehicle_from_sonar.theta().to_degrees(),
+            match mounting.sonar_angle {
+                AngleDirection::CounterClockwise => "counter-clockwise",
+                AngleDirection::Clockwise => "clockwise",
+            }
+        )
+    })
+}
 
 /// A gap between consecutive nodes longer than this many median node
 /// periods is reported.
@@ -46,6 +83,14 @@ fn run(
 ) -> Result<SlamOutput, SlamError> {
     let start = Instant::now();
     config.validate()?;
+    let mission = config.mounting.apply(mission).map_err(|e| match e {
+        echofield_frontend::FrontendError::InvalidConfig { field, message } => {
+            SlamError::config(format!("mounting.{field}"), message)
+        }
+        other => SlamError::frontend("mounting", other),
+    })?;
+    let (mission, intensity) = scan_only_profiles(mission);
+    let mission: &Mission = &mission;
     check_sensors(mission)?;
     let mut timings = StageTimings::default();
 
@@ -103,6 +148,7 @@ fn run(
         summary,
         mut warnings,
     } = pass;
+    warnings.extend(mounting_warning(&mission.mounting));
 
     let mut records: Vec<NodeRecord> = nodes
         .iter()
@@ -168,6 +214,7 @@ fn run(
             yaw_rate_check: navigation.yaw_rate_check().copied(),
             odometry_scale,
         },
+        mounting: mission.mounting.clone(),
         warnings,
         ate_rmse_m: None,
         ate_rmse_dead_reckoning_m: None,

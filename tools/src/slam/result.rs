@@ -17,6 +17,7 @@ use echofield_frontend::dead_reckoning::gyro_check::YawRateCheck;
 use echofield_frontend::image::{AcousticImage, ImageConfig};
 use echofield_frontend::matcher::{MatchQuality, SearchWindow};
 use echofield_frontend::scan::Scan;
+use echofield_frontend::sensors::SensorMounting;
 use echofield_graph::{NodeId, PoseGraph, Se2};
 use nalgebra::Matrix3;
 use serde::Serialize;
@@ -426,6 +427,9 @@ pub struct Report {
     pub solver: SolverReport,
     pub time_gaps: Vec<TimeGap>,
     pub dead_reckoning: DeadReckoningReport,
+    /// The sensor mounting the run used: the mission's, with the config's
+    /// `[mounting]` applied.
+    pub mounting: SensorMounting,
     /// Warnings worth a user's attention (gaps, skipped rotations, ...).
     pub warnings: Vec<String>,
     /// With ground truth: ATE RMSE of the optimised nodes after SE(2)
