@@ -38,6 +38,7 @@ mod error;
 pub mod geometry;
 mod mission;
 pub mod navigation;
+pub mod point_sets;
 mod scenario;
 pub mod scenes;
 pub mod sonar;

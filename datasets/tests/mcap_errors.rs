@@ -178,6 +178,11 @@ fn unknown_schema_on_an_echofield_topic_is_an_error_and_other_topics_are_skipped
     let mission = read_mission(&path).unwrap();
     assert_eq!(mission.beams.len(), 1);
     assert_eq!(mission.name, "schemas", "no metadata: the file stem");
+    assert_eq!(
+        mission.mounting,
+        echofield_frontend::sensors::SensorMounting::assumed_identity(),
+        "no metadata: the identity mounting, marked as assumed"
+    );
 
     write_raw(&path, &[json_msg("/dvl/velocity", "acme.Dvl", 1, "{}")]);
     let text = read_mission(&path).unwrap_err().to_string();

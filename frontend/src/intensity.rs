@@ -1,38 +1,49 @@
 //! Scan-only sonar data: beams whose intensities are binary.
 //!
 //! Many published MSIS logs keep only the bins above a threshold (the St
-//! Pere point sets), or only ranges (a LaserScan). Rebuilt as beams, such
-//! data has one intensity where an echo passed the threshold and 0
-//! elsewhere, and a wall arrives as a *band* of bins 1-3 m (up to 10 m)
-//! thick along range rather than as a peak. Fed as they are, the bands
-//! make a poor likelihood field for eq. (5): the image is flat across each
-//! band, so `s(x)` has a plateau as wide as the band along every beam and
-//! the maximum of eq. (6) is anywhere on it, and the scan's range (the
-//! centre of the first plateau) is one point among many equal ones.
+//! Pere point sets), or only one range per beam (a LaserScan). Rebuilt as
+//! beams, such data has one intensity where an echo passed the threshold
+//! and 0 elsewhere: a wall arrives as a *band* of bins, 1-3 m thick along
+//! range in the St Pere data (up to 14 m), a LaserScan return as a single
+//! bin. [`detect`] recognises such data from the beams themselves.
 //!
-//! [`band_profiles`] turns every band into the profile its own
-//! correlation would give: the band `[a, b]` (bins, width `w = b − a + 1`)
-//! becomes a triangle that peaks at its centre `c = (a + b) / 2` and falls
-//! linearly to 0 at `c ± w`,
+//! # How `S_k` and `I_k` are built from bands
 //!
-//! ```text
-//! p(i) = max(0, 1 − |i − c| / w)        (band ⊛ box of width w, over w)
-//! ```
+//! A band says that the surface lies somewhere between its ends; the
+//! threshold removed whatever would tell where. So:
 //!
-//! scaled to the beam's intensity scale and combined over bands by their
-//! maximum. The segmentation then takes the centre of a band as its range
-//! (the profile's single peak), the image peaks at the same range, and a
-//! scan point that lies `d` bins off the band's centre scores `1 − d / w`:
-//! the score of eq. (5) falls away from the true pose on every beam, the
-//! more slowly the thicker (less certain) the band. No parameter: the
-//! band's own width sets the spread.
+//! - **`I_k`** keeps the bands as they are: the likelihood of a return is
+//!   uniform across a band and 0 outside it (after the image's usual
+//!   normalisation every band has value 1). The score of eq. (5) then
+//!   counts the scan points that land inside bands, and eq. (6) finds the
+//!   pose that puts the most of them there; where several poses tie, the
+//!   match's covariance (fitted to the score surface) is wide along the
+//!   directions of the tie.
+//! - **`S_k`** takes one range per beam: the centre of the beam's
+//!   *nearest* band (the first surface the beam met; bands behind it are
+//!   reverberation, multipath or what the beam saw over the wall). With
+//!   the segmentation's default 3-bin smoothing a band reaches the full
+//!   level only when it is at least 3 bins thick, so [`widen_bands`] first
+//!   widens every band thinner than `min_band_bins` to that width about
+//!   its centre; then the strongest (smoothed) bin is the nearest band's
+//!   plateau and the segmentation returns its centre.
+//! - Widening also keeps single-bin returns (ranges-only data) resolvable
+//!   on the image's raster: the pipeline asks for two raster cells.
+//! - Binary data carries no echo strength, so the two stages that compare
+//!   intensities do not apply and are switched off by the pipeline
+//!   ([`prepare`]): the off-axis suppression (which needs a
+//!   neighbour that hears the target louder) and the beam-width
+//!   correction (which models how a graded echo's peak falls short of the
+//!   beam's axis; a band's centre already lies near the axis range).
 //!
-//! The centre rather than the leading edge: a band is where a beam of
-//! finite width, spread along range by the pulse and the smoothing before
-//! the threshold, saw a surface; its near edge is where the beam's edge
-//! first touched it, which moves with the viewpoint, while its centre
-//! stays near the axis's range.
+//! The alternatives measured before this choice (triangular profiles
+//! peaked at each band's centre, bands weighted by their width, every band
+//! bin as a scan point, Gaussian-smoothed bands) and their figures on the
+//! real St Pere point sets and on simulated missions thresholded the same
+//! way are in `docs/real-data.md`.
 
+use crate::image::ImageConfig;
+use crate::segmentation::SegmentationConfig;
 use crate::sensors::SonarBeam;
 use serde::{Deserialize, Serialize};
 
@@ -42,7 +53,7 @@ use serde::{Deserialize, Serialize};
 pub enum IntensityKind {
     /// Echo intensities on a graded scale (a head's own log).
     Graded,
-    /// One non-zero `level` and 0: thresholded data (see the module doc).
+    /// One non-zero `level` and 0: thresholded or ranges-only data.
     Binary { level: u8 },
     /// No bin above 0 at all.
     Empty,
@@ -68,45 +79,112 @@ pub fn detect(beams: &[SonarBeam]) -> IntensityKind {
     }
 }
 
-/// Replaces every band of non-zero bins of `beam` by its triangular
-/// profile (module doc), peaking at `level`.
-pub fn band_profile(beam: &mut SonarBeam, level: u8) {
-    let bins = &beam.intensities;
-    let n = bins.len();
-    let mut out = vec![0u8; n];
+/// Widens every band (run of non-zero bins) of `beam` thinner than
+/// `min_band_bins` to that width about its centre (the extra bin of an
+/// odd difference goes on the far side), at the band's own level. Bands
+/// that grow into each other merge. Bins beyond the beam's ends are not
+/// added.
+pub fn widen_bands(beam: &mut SonarBeam, min_band_bins: usize) {
+    let n = beam.intensities.len();
+    let mut out = beam.intensities.clone();
     let mut i = 0;
     while i < n {
-        if bins[i] == 0 {
+        let level = beam.intensities[i];
+        if level == 0 {
             i += 1;
             continue;
         }
         let start = i;
-        while i < n && bins[i] != 0 {
+        while i < n && beam.intensities[i] != 0 {
             i += 1;
         }
-        let width = (i - start) as f64;
-        let centre = 0.5 * (start + i - 1) as f64;
-        let lo = (centre - width).ceil().max(0.0) as usize;
-        let hi = ((centre + width).floor() as usize).min(n - 1);
-        for (k, slot) in out.iter_mut().enumerate().take(hi + 1).skip(lo) {
-            let p = 1.0 - (k as f64 - centre).abs() / width;
-            let value = (p * f64::from(level)).round() as u8;
-            *slot = (*slot).max(value);
+        let width = i - start;
+        if width < min_band_bins {
+            let extra = min_band_bins - width;
+            let lo = start.saturating_sub(extra / 2);
+            let hi = (i + extra - extra / 2).min(n);
+            for v in &mut out[lo..hi] {
+                *v = (*v).max(level);
+            }
         }
     }
     beam.intensities = out;
 }
 
-/// [`band_profile`] on every beam.
-pub fn band_profiles(beams: &mut [SonarBeam], level: u8) {
+/// [`widen_bands`] on every beam, each to at least `min_band_m` (in its
+/// own bins, rounded up) and at least `min_bins`.
+pub fn widen_all(beams: &mut [SonarBeam], min_band_m: f64, min_bins: usize) {
     for beam in beams {
-        band_profile(beam, level);
+        let bins = if beam.bin_size_m > 0.0 && min_band_m.is_finite() {
+            (min_band_m / beam.bin_size_m).ceil().max(0.0) as usize
+        } else {
+            0
+        };
+        widen_bands(beam, bins.max(min_bins));
+    }
+}
+
+/// Switches off the stages that compare intensities (module doc): what
+/// [`prepare`] changes in the settings of binary data.
+pub fn binary_settings(segmentation: &mut SegmentationConfig, image: &mut ImageConfig) {
+    segmentation.off_axis.enabled = false;
+    image.off_axis.enabled = false;
+    segmentation.beam_width.enabled = false;
+}
+
+/// What [`prepare`] found and changed.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Preparation {
+    pub kind: IntensityKind,
+    /// The settings changed for binary data (`key = value`, TOML paths
+    /// under the segmentation and image sections), empty otherwise.
+    pub derived: Vec<String>,
+}
+
+/// Prepares a mission's beams and the scan and image settings for their
+/// intensities, in place (the one place both pipelines call): for binary
+/// data, the level is set to 255, every band is widened to at least two raster cells of `image`
+/// (for the beams given) and at least the segmentation's smoothing window
+/// ([`widen_all`]), and the off-axis suppressions and the beam-width
+/// correction are switched off (module doc). Graded and empty data are
+/// left as they are.
+pub fn prepare(
+    beams: &mut [SonarBeam],
+    segmentation: &mut SegmentationConfig,
+    image: &mut ImageConfig,
+) -> Preparation {
+    let kind = detect(beams);
+    if !matches!(kind, IntensityKind::Binary { .. }) {
+        return Preparation {
+            kind,
+            derived: Vec::new(),
+        };
+    }
+    // One level means "a return": at full scale, so that the thresholds
+    // in counts (`segmentation.min_intensity`) treat every band alike.
+    for v in beams.iter_mut().flat_map(|b| b.intensities.iter_mut()) {
+        if *v > 0 {
+            *v = u8::MAX;
+        }
+    }
+    let min_band_m = 2.0 * image.cell_size_for(beams);
+    widen_all(beams, min_band_m, segmentation.smoothing_bins);
+    binary_settings(segmentation, image);
+    Preparation {
+        kind,
+        derived: vec![
+            "segmentation.off_axis.enabled = false".into(),
+            "image.off_axis.enabled = false".into(),
+            "segmentation.beam_width.enabled = false".into(),
+            format!("bands thinner than {min_band_m:.2} m widened to it"),
+        ],
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::segmentation::{SegmentationConfig, extract_ranges};
 
     fn beam(intensities: Vec<u8>) -> SonarBeam {
         SonarBeam {
@@ -128,37 +206,44 @@ mod tests {
     }
 
     #[test]
-    fn a_band_becomes_a_triangle_peaked_at_its_centre() {
-        // Band of 4 bins at 10..=13: centre 11.5, zero at 7.5 and 15.5.
-        let mut bins = vec![0u8; 20];
-        bins[10..14].fill(255);
+    fn thin_bands_widen_about_their_centre_and_thick_ones_stay() {
+        let mut bins = vec![0u8; 30];
+        bins[5] = 9; // a single bin
+        bins[10..12].fill(9); // two bins
+        bins[20..26].fill(9); // six bins
         let mut b = beam(bins);
-        band_profile(&mut b, 200);
-        let p = &b.intensities;
-        assert_eq!(p[11], p[12]);
-        assert_eq!(p[11], 175); // 1 - 0.5/4 = 0.875 of 200
-        assert_eq!(p[10], 125); // 1 - 1.5/4
-        assert_eq!(p[9], 75);
-        assert_eq!(p[8], 25);
-        assert_eq!(p[7], 0);
-        assert_eq!(p[16], 0);
-        assert!(p[..11].windows(2).all(|w| w[1] >= w[0]));
-        assert!(p[12..].windows(2).all(|w| w[1] <= w[0]));
+        widen_bands(&mut b, 4);
+        let lit: Vec<usize> = (0..30).filter(|&i| b.intensities[i] > 0).collect();
+        let expected: Vec<usize> = [4, 5, 6, 7, 9, 10, 11, 12]
+            .into_iter()
+            .chain(20..26)
+            .collect();
+        assert_eq!(lit, expected);
+        // At the beam's end nothing is added beyond it.
+        let mut end = beam(vec![0, 0, 0, 7]);
+        widen_bands(&mut end, 4);
+        assert_eq!(end.intensities, vec![0, 0, 7, 7]);
     }
 
+    /// The segmentation's range of a binary beam is the centre of its
+    /// nearest band, whatever the bands' widths.
     #[test]
-    fn a_single_bin_keeps_its_peak_and_bands_overlap_by_maximum() {
-        let mut bins = vec![0u8; 12];
-        bins[2] = 9;
-        bins[6..9].fill(9);
+    fn the_scan_takes_the_centre_of_the_nearest_band() {
+        let config = SegmentationConfig {
+            min_sigma_above_mean: 0.0,
+            ..SegmentationConfig::default()
+        };
+        // Bands at bins 40..=41 (thin), 100..=159 (thick), 300.
+        let mut bins = vec![0u8; 400];
+        bins[40..42].fill(255);
+        bins[100..160].fill(255);
+        bins[300] = 255;
         let mut b = beam(bins);
-        band_profile(&mut b, 90);
-        let p = &b.intensities;
-        assert_eq!(p[2], 90);
-        assert_eq!((p[1], p[3]), (0, 0));
-        assert_eq!(p[7], 90);
-        assert_eq!(p[5], 30);
-        assert_eq!(p[4], 0);
-        assert_eq!(p[10], 0);
+        widen_bands(&mut b, 4);
+        let ranges = extract_ranges(&b, &config);
+        assert_eq!(ranges.len(), 1);
+        // Widened to 39..=42: centre 40.5, the plateau centre bin 40 or 41,
+        // whose far ends are 4.1 and 4.2 m.
+        assert!((ranges[0].range_m - 4.15).abs() < 0.06, "{ranges:?}");
     }
 }

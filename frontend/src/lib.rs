@@ -4,6 +4,7 @@
 //! assembly, beam segmentation, scans `S_k`, acoustic images `I_k` and the
 //! acoustic-image measurement model of the seed paper.
 
+pub mod calibration;
 pub mod dead_reckoning;
 pub mod error;
 pub mod icp;

@@ -212,7 +212,7 @@ pub fn restamp_sweep(beams: &mut [SonarBeam]) -> Result<(), FrontendError> {
         return Ok(());
     }
     let step = wrap_angle(beams[1].angle_rad - beams[0].angle_rad).abs();
-    if !(step > 1e-6) {
+    if step.is_nan() || step <= 1e-6 {
         return Err(FrontendError::input("beam 1", "angle_rad", "no angle step"));
     }
     let at_zero = |b: &SonarBeam| wrap_angle(b.angle_rad).abs() < 0.5 * step;

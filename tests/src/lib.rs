@@ -73,3 +73,48 @@ pub fn ground_truth_odometry_scale(
     }
     rz / zz
 }
+
+/// The real St Pere mission of `datasets/stpere-marina`, its beams rebuilt
+/// from the real sonar point sets of `datasets/stpere-marina-sonar`
+/// (rotations 1-115, expanded from their compact band form) under the
+/// assumed `sweep`, with the logged conventions in its mounting.
+pub fn stpere_point_set_mission(
+    sweep: echofield_frontend::sensors::SweepTiming,
+) -> echofield_frontend::sensors::Mission {
+    use echofield_datasets::stpere::{SonarSetup, point_bands, read_stpere_with_keyframes};
+    let sonar = datasets_dir().join("stpere-marina-sonar");
+    let dir = tempfile::tempdir().expect("a temporary folder");
+    let setup = SonarSetup {
+        range_m: 50.0,
+        bin_size_m: 0.1,
+        step_rad: 0.0314159,
+    };
+    point_bands::expand_point_bands(
+        &sonar.join("bands.csv"),
+        &sonar.join("keyFrameTimeStamps.csv"),
+        &setup,
+        dir.path(),
+    )
+    .expect("the committed point bands expand");
+    read_stpere_with_keyframes(&datasets_dir().join("stpere-marina"), dir.path(), sweep)
+        .expect("the committed St Pere logs read")
+        .0
+        .mission
+}
+
+/// The St Pere sonar conventions that the DGPS track confirms (fitted by
+/// hand against it, outside the code under test; issue 34): the head's
+/// angle runs clockwise, decreasing with time, its zero 246° counter-
+/// clockwise from the vehicle's x axis (with the mission's +19.4° heading
+/// calibration), at the starter code's (0.33 m, 0).
+pub fn stpere_dgps_conventions() -> echofield_frontend::mounting::MountingConfig {
+    use echofield_frontend::sensors::{AngleDirection, SweepTiming};
+    echofield_frontend::mounting::MountingConfig {
+        sonar_x_m: Some(0.33),
+        sonar_y_m: Some(0.0),
+        sonar_yaw_deg: Some(246.0),
+        sonar_angle: Some(AngleDirection::Clockwise),
+        sweep: Some(SweepTiming::AngleDecreasing),
+        ..Default::default()
+    }
+}

@@ -8,13 +8,30 @@
 //! ±0.5 m and ±5°, so the maximum is found, not assumed.
 
 use echofield::matching::{MatchingConfig, MissionRotations};
+use echofield_datasets::sim::point_sets::to_point_sets;
 use echofield_datasets::sim::{Scenario, SimConfig, simulate_mission};
 use echofield_frontend::matcher::{MatchOutcome, SearchWindow, match_scan};
+use echofield_frontend::sensors::SweepTiming;
 use echofield_graph::Se2;
-use echofield_tests::{datasets_dir, miniking_config, miniking_log, ping360_config, ping360_log};
+use echofield_tests::{
+    datasets_dir, miniking_config, miniking_log, ping360_config, ping360_log,
+    stpere_dgps_conventions, stpere_point_set_mission,
+};
 
 const TOLERANCE_M: f64 = 0.05;
 const TOLERANCE_DEG: f64 = 0.5;
+
+/// Binary (scan-only) data: a band gives the same score wherever in it a
+/// point lands, so the argmax is a region; its extent is about one raster
+/// cell (0.2 m for 50 m beams) when the bands are at their narrowest (two
+/// cells, `echofield_frontend::intensity`): the tolerance is one cell.
+fn tolerance_m(mission: &MissionRotations, config: &MatchingConfig) -> f64 {
+    if mission.binary {
+        config.image.cell_size_for(&mission.mission.beams)
+    } else {
+        TOLERANCE_M
+    }
+}
 
 /// Matches every rotation with a scan against its own image; returns the
 /// worst translation (m) and angle (deg) errors and the number of rotations
@@ -28,6 +45,7 @@ fn self_match_every_rotation(
     let prior = Se2::new(0.3, -0.2, 2.0_f64.to_radians());
     let window = SearchWindow::new(0.5, 0.5, 5.0_f64.to_radians());
     let (mut worst_m, mut worst_deg, mut without_scan, mut matched) = (0.0_f64, 0.0_f64, 0, 0);
+    let tolerance = tolerance_m(mission, config);
     for rotation in mission.rotations.iter().filter(|r| keep(r.index)) {
         let k = rotation.index;
         let Ok((scan, image)) = mission.scan_and_image(k, config) else {
@@ -43,7 +61,7 @@ fn self_match_every_rotation(
             m.image_from_scan.theta().abs().to_degrees(),
         );
         assert!(
-            dt < TOLERANCE_M && dtheta < TOLERANCE_DEG,
+            dt < tolerance && dtheta < TOLERANCE_DEG,
             "{name} rotation {k}: argmax at {:?} ({dt:.3} m, {dtheta:.2} deg)",
             m.image_from_scan.to_vector()
         );
@@ -117,5 +135,65 @@ fn real_miniking_log() {
     assert!(rotations.stationary);
     assert_eq!(rotations.rotations.len(), 2);
     let (_, _, without) = self_match_every_rotation("miniking", &rotations, &config, |_| true);
+    assert_eq!(without, 0);
+}
+
+/// Scan-only data: the tank mission thresholded as the published St Pere
+/// point sets were (binary bands, `echofield_frontend::intensity`).
+#[test]
+fn simulated_tank_mission_as_point_sets() {
+    let mut mission = simulate_mission(&Scenario::named("tank").unwrap(), 1).unwrap();
+    to_point_sets(&mut mission.beams);
+    let config = MatchingConfig::default();
+    let rotations = MissionRotations::new(mission, &config).unwrap();
+    assert!(rotations.binary);
+    let (_, _, without) =
+        self_match_every_rotation("tank point sets", &rotations, &config, |_| true);
+    assert_eq!(without, 0);
+}
+
+/// Ranges only (a LaserScan): one bin per beam, the strongest.
+#[test]
+fn simulated_tank_mission_as_ranges_only() {
+    let mut mission = simulate_mission(&Scenario::named("tank").unwrap(), 1).unwrap();
+    for beam in &mut mission.beams {
+        let (best, &peak) = beam
+            .intensities
+            .iter()
+            .enumerate()
+            .skip(10)
+            .max_by_key(|(i, v)| (**v, std::cmp::Reverse(*i)))
+            .unwrap();
+        beam.intensities.fill(0);
+        if peak > 100 {
+            beam.intensities[best] = 1;
+        }
+    }
+    let config = MatchingConfig::default();
+    let rotations = MissionRotations::new(mission, &config).unwrap();
+    assert!(rotations.binary);
+    let (_, _, without) = self_match_every_rotation("tank ranges", &rotations, &config, |_| true);
+    assert_eq!(without, 0);
+}
+
+/// The real St Pere sonar point sets (rotations 13-115, those the
+/// navigation covers), with the conventions the DGPS confirms.
+#[test]
+fn real_st_pere_point_sets() {
+    let mission = stpere_point_set_mission(SweepTiming::AngleDecreasing);
+    let mission = stpere_dgps_conventions()
+        .apply(&mission)
+        .unwrap()
+        .into_owned();
+    let config = MatchingConfig::default();
+    let rotations = MissionRotations::new(mission, &config).unwrap();
+    assert!(rotations.binary);
+    let covered = rotations
+        .covered_rotations()
+        .expect("navigation covers rotations");
+    let (_, _, without) =
+        self_match_every_rotation("St Pere point sets", &rotations, &config, |k| {
+            (covered.0..=covered.1).contains(&k)
+        });
     assert_eq!(without, 0);
 }

@@ -44,6 +44,14 @@ fn demo_simulates_runs_and_writes_every_output() {
     }
     let report = &summary.output.report;
     assert_eq!(report.nodes, summary.output.nodes.len());
+    // The run's judgement of itself is in report.json, and it is ok.
+    let written: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(
+        written["health"]["verdict"], "ok",
+        "{:#}",
+        written["health"]
+    );
     assert!(report.nodes >= 5, "{} nodes", report.nodes);
     // The summary states the accuracy against ground truth and where to look.
     let text = summary.text();

@@ -70,6 +70,14 @@ fn marina_mission_is_five_times_better_than_dead_reckoning() {
 
     // Structure: every rotation is a node, the chain is complete.
     let report = &output.report;
+    // The demo's mission judges its own result ok (`report.json` →
+    // `health`; the suspect cases are in `slam_health`).
+    assert_eq!(
+        report.health.verdict,
+        echofield::slam::health::Verdict::Ok,
+        "{:#?}",
+        report.health
+    );
     assert_eq!(
         report.nodes, report.rotations,
         "{:?}",

@@ -2,6 +2,7 @@
 
 pub mod bench_dead_reckoning;
 pub mod bench_matcher;
+pub mod calibrate;
 pub mod convert;
 pub mod demo;
 pub mod error_budget;
@@ -21,6 +22,41 @@ pub fn set_threads(threads: Option<std::num::NonZeroUsize>) -> anyhow::Result<()
             .num_threads(n.get())
             .build_global()
             .map_err(|e| anyhow::anyhow!("cannot start {n} worker threads: {e}"))?;
+    }
+    Ok(())
+}
+
+/// The error of a run that wrote every output but judged its result
+/// suspect (`report.json` → `health`); `main` exits with
+/// [`SUSPECT_EXIT_STATUS`](echofield::slam::health::SUSPECT_EXIT_STATUS).
+#[derive(Debug)]
+pub struct SuspectRun;
+
+impl std::fmt::Display for SuspectRun {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "suspect result (report.json → health; every output was written): \
+             exit status {}, or 0 with --allow-suspect",
+            echofield::slam::health::SUSPECT_EXIT_STATUS
+        )
+    }
+}
+
+impl std::error::Error for SuspectRun {}
+
+/// Prints the run's health for `mission` to stdout; a suspect run is a
+/// [`SuspectRun`] error unless `allow_suspect`.
+pub fn check_health(
+    health: &echofield::slam::health::Health,
+    mission: &str,
+    allow_suspect: bool,
+) -> anyhow::Result<()> {
+    for line in health.summary_lines(mission) {
+        println!("{line}");
+    }
+    if health.verdict == echofield::slam::health::Verdict::Suspect && !allow_suspect {
+        return Err(SuspectRun.into());
     }
     Ok(())
 }

@@ -4,6 +4,7 @@
 //! output files and, in later stages, the SLAM pipeline that joins the
 //! frontend and the backend.
 
+pub mod calibration;
 pub mod config_file;
 pub mod eval;
 pub mod matching;

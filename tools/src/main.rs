@@ -28,6 +28,8 @@ enum Command {
     Simulate(cmd::simulate::Args),
     /// Run the SLAM pipeline over a mission (MCAP or St Pere folder).
     Run(cmd::run::Args),
+    /// Estimate the sonar head's mounting from the mission's own data.
+    Calibrate(cmd::calibrate::Args),
     /// Match the scan of one rotation against the acoustic image of another.
     Match(cmd::matching::Args),
     /// Success rate of the matcher against ground truth, beside ICP.
@@ -52,6 +54,7 @@ fn main() -> ExitCode {
         Command::Convert(args) => cmd::convert::run(args),
         Command::Simulate(args) => cmd::simulate::run(args),
         Command::Run(args) => cmd::run::run(args),
+        Command::Calibrate(args) => cmd::calibrate::run(args),
         Command::Match(args) => cmd::matching::run(args),
         Command::BenchMatcher(args) => cmd::bench_matcher::run(args),
         Command::BenchDeadReckoning(args) => cmd::bench_dead_reckoning::run(args),
@@ -62,6 +65,10 @@ fn main() -> ExitCode {
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
+        Err(err) if err.is::<cmd::SuspectRun>() => {
+            eprintln!("{err}");
+            ExitCode::from(echofield::slam::health::SUSPECT_EXIT_STATUS)
+        }
         Err(err) => {
             eprintln!("error: {err:#}");
             ExitCode::FAILURE

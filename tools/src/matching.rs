@@ -18,6 +18,7 @@ use echofield_datasets::{mcap, miniking, ping360, stpere};
 use echofield_frontend::FrontendError;
 use echofield_frontend::dead_reckoning::{self, DeadReckoningConfig, Navigation};
 use echofield_frontend::image::{AcousticImage, ImageConfig};
+use echofield_frontend::intensity::{self, IntensityKind};
 use echofield_frontend::matcher::{MatcherConfig, SearchWindow};
 use echofield_frontend::motion;
 use echofield_frontend::rotation::{Rotation, RotationConfig, assemble_rotations};
@@ -139,10 +140,24 @@ pub struct MissionRotations {
     /// taken to be at rest (the real static sonar recordings).
     pub stationary: bool,
     pub rotations: Vec<Rotation>,
+    /// True when the beams' intensities are binary (scan-only data): the
+    /// beams were prepared by `echofield_frontend::intensity::prepare`,
+    /// and the scans and images are built with the settings it derives.
+    pub binary: bool,
 }
 
 impl MissionRotations {
-    pub fn new(mission: Mission, config: &MatchingConfig) -> Result<Self> {
+    pub fn new(mut mission: Mission, config: &MatchingConfig) -> Result<Self> {
+        let (mut segmentation, mut image) = (config.segmentation.clone(), config.image.clone());
+        let prepared = intensity::prepare(&mut mission.beams, &mut segmentation, &mut image);
+        let binary = matches!(prepared.kind, IntensityKind::Binary { .. });
+        if binary {
+            tracing::info!(
+                "{}: binary intensities (scan-only data): {}",
+                mission.name,
+                prepared.derived.join(", ")
+            );
+        }
         let stationary = mission.dvl.iter().all(|d| !d.valid) || mission.attitude.is_empty();
         let navigation = if stationary {
             tracing::info!(
@@ -162,6 +177,7 @@ impl MissionRotations {
             navigation,
             stationary,
             rotations,
+            binary,
         })
     }
 
@@ -312,16 +328,22 @@ impl MissionRotations {
         self.scan_with(k, &self.frames(k)?, config)
     }
 
+    /// `config`'s segmentation and image settings, with those that binary
+    /// data changes changed ([`intensity::binary_settings`]).
+    fn settings(&self, config: &MatchingConfig) -> (SegmentationConfig, ImageConfig) {
+        let (mut segmentation, mut image) = (config.segmentation.clone(), config.image.clone());
+        if self.binary {
+            intensity::binary_settings(&mut segmentation, &mut image);
+        }
+        (segmentation, image)
+    }
+
     fn scan_with(&self, k: usize, frames: &[Se2], config: &MatchingConfig) -> Result<Scan> {
         let rotation = self.rotation(k)?;
         let beams = &self.mission.beams[rotation.beams.clone()];
-        build_scan(
-            beams,
-            frames,
-            rotation.reference_stamp_s,
-            &config.segmentation,
-        )
-        .with_context(|| format!("scan of rotation {k}"))
+        let (segmentation, _) = self.settings(config);
+        build_scan(beams, frames, rotation.reference_stamp_s, &segmentation)
+            .with_context(|| format!("scan of rotation {k}"))
     }
 
     fn image_with(
@@ -332,7 +354,8 @@ impl MissionRotations {
     ) -> Result<AcousticImage> {
         let rotation = self.rotation(k)?;
         let beams = &self.mission.beams[rotation.beams.clone()];
-        AcousticImage::build(beams, frames, &config.image)
+        let (_, image) = self.settings(config);
+        AcousticImage::build(beams, frames, &image)
             .with_context(|| format!("acoustic image of rotation {k}"))
     }
 

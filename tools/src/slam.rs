@@ -48,6 +48,7 @@ pub mod error;
 pub mod error_budget;
 pub mod estimate;
 pub mod evaluation;
+pub mod health;
 pub mod loops;
 pub mod nodes;
 pub mod odometry_scale;
@@ -65,8 +66,8 @@ pub use error::SlamError;
 pub use loops::LoopConfig;
 pub use pipeline::run_mission;
 pub use result::{
-    LoopRecord, NodeRecord, RecallBin, RecallBudget, RejectReason, Report, SequentialRecord,
-    SlamOutput, StageTimings,
+    IntensityReport, LoopRecord, NodeRecord, RecallBin, RecallBudget, RejectReason, Report,
+    SequentialRecord, SlamOutput, StageTimings,
 };
 
 use anyhow::{Context, Result, bail};

@@ -94,3 +94,93 @@ fn the_thread_count_does_not_change_the_trajectory() {
         "{zero:?}"
     );
 }
+
+/// The real St Pere point sets (`datasets/stpere-marina-sonar`) expanded
+/// into a keyframe folder in `dir`.
+fn st_pere_keyframes(dir: &Path) -> PathBuf {
+    use echofield_datasets::stpere::SonarSetup;
+    use echofield_datasets::stpere::point_bands::expand_point_bands;
+    let sonar = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../datasets/stpere-marina-sonar");
+    let keyframes = dir.join("keyframes");
+    // The MiniKing setup of the mission (`_SETUP.log`).
+    let setup = SonarSetup {
+        range_m: 50.0,
+        bin_size_m: 0.1,
+        step_rad: 0.0314159,
+    };
+    expand_point_bands(
+        &sonar.join("bands.csv"),
+        &sonar.join("keyFrameTimeStamps.csv"),
+        &setup,
+        &keyframes,
+    )
+    .unwrap();
+    keyframes
+}
+
+/// A run that judges its result suspect (the real St Pere sonar under the
+/// head conventions as logged) writes every output, says why and what to
+/// do, and exits with the documented status; `--allow-suspect` makes it 0.
+#[test]
+fn a_suspect_run_writes_its_outputs_and_exits_with_the_suspect_status() {
+    let dir = tempfile::tempdir().unwrap();
+    let keyframes = st_pere_keyframes(dir.path());
+    let logs = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../datasets/stpere-marina");
+    let run = |out: &Path, extra: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_echofield"))
+            .arg("run")
+            .arg(&logs)
+            .arg("--keyframes")
+            .arg(&keyframes)
+            .arg("--output")
+            .arg(out)
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let out = dir.path().join("suspect");
+    let suspect = run(&out, &[]);
+    assert_eq!(
+        suspect.status.code(),
+        Some(i32::from(echofield::slam::health::SUSPECT_EXIT_STATUS)),
+        "{suspect:?}"
+    );
+    let stdout = String::from_utf8_lossy(&suspect.stdout);
+    assert!(stdout.contains("health: SUSPECT"), "{stdout}");
+    assert!(stdout.contains("echofield calibrate"), "{stdout}");
+    assert!(stdout.contains("--keyframes"), "{stdout}");
+    let stderr = String::from_utf8_lossy(&suspect.stderr);
+    assert!(stderr.contains("--allow-suspect"), "{stderr}");
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(report["health"]["verdict"], "suspect");
+    assert_eq!(report["health"]["cause"], "mounting");
+    assert!(out.join("trajectory_tum.txt").is_file() && out.join("mosaic.png").is_file());
+
+    let allowed = run(&dir.path().join("allowed"), &["--allow-suspect"]);
+    assert!(allowed.status.success(), "{allowed:?}");
+    assert!(String::from_utf8_lossy(&allowed.stdout).contains("health: SUSPECT"));
+}
+
+/// The status is documented where a user looks for it.
+#[test]
+fn the_suspect_status_is_documented() {
+    let help = Command::new(env!("CARGO_BIN_EXE_echofield"))
+        .args(["run", "--help"])
+        .output()
+        .unwrap();
+    let help = String::from_utf8_lossy(&help.stdout);
+    let status = echofield::slam::health::SUSPECT_EXIT_STATUS;
+    assert!(help.contains("--allow-suspect"), "{help}");
+    assert!(
+        help.contains(&format!("Exit status: 0 for an ok run; {status} when")),
+        "{help}"
+    );
+    let readme =
+        std::fs::read_to_string(PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../README.md"))
+            .unwrap();
+    assert!(
+        readme.contains(&format!("exits with status {status}")),
+        "README"
+    );
+}

@@ -59,7 +59,10 @@ impl Decoder {
 /// skipped channels, errors).
 ///
 /// Files without the `echofield.mission` metadata (ROS 2 recordings) get the
-/// file stem as name and the identity mounting.
+/// file stem as name and the identity mounting marked
+/// [`MountingSource::Assumed`](echofield_frontend::sensors::MountingSource):
+/// nothing in the file says where the sonar head sits, and the pipeline
+/// warns about it.
 pub fn read_mission(path: &Path) -> Result<Mission, DatasetError> {
     let file = File::open(path).map_err(|e| DatasetError::io(path, e))?;
     let len = file
@@ -260,6 +263,7 @@ impl State {
                 mission.mounting = mounting;
             }
             None => {
+                mission.mounting = SensorMounting::assumed_identity();
                 mission.name = self
                     .path
                     .file_stem()

@@ -24,7 +24,10 @@ Examples:
 The folder gets the simulated input (simulated_mission.mcap) and every output
 of `echofield run`: trajectory.png, loops.png, mosaic.png, mission.mcap (open
 it in Foxglove), report.json, loops.csv, TUM/CSV/g2o trajectories and
-config.toml.")]
+config.toml.
+
+Exit status: as for `echofield run`: 3 when the run judges its own result
+suspect (report.json → health), unless --allow-suspect; 1 for any error.")]
 pub struct Args {
     /// Output folder (created if needed).
     #[arg(long, short)]
@@ -43,6 +46,10 @@ pub struct Args {
     /// results do not depend on it.
     #[arg(long, value_name = "N")]
     pub threads: Option<std::num::NonZeroUsize>,
+    /// Exit with status 0 even when the run judges its result suspect, as
+    /// for `echofield run`.
+    #[arg(long)]
+    pub allow_suspect: bool,
 }
 
 pub fn run(args: Args) -> Result<()> {
@@ -58,5 +65,6 @@ pub fn run(args: Args) -> Result<()> {
         &BarProgress::new(),
     )?;
     println!("{}", summary.text());
-    Ok(())
+    let mission = summary.mission_path.display().to_string();
+    super::check_health(&summary.output.report.health, &mission, args.allow_suspect)
 }

@@ -30,6 +30,11 @@ Examples:
   # Make a mission to try it on
   echofield simulate --scenario marina --seed 1 --output marina.mcap
 
+Exit status: 0 for an ok run; 3 when the run wrote every output but judged
+its own result suspect (report.json → health: the sonar and the navigation
+disagree, as with a wrong sonar mounting; the summary names the likely cause
+and the remedy), unless --allow-suspect is given; 1 for any error.
+
 The config sections are [mounting], [dead_reckoning], [rotation], [segmentation],
 [image], [matcher], [sequential], [loops], [backend] and [evaluation]; see
 tools/configs/default.toml for every key with its default and unit. The
@@ -58,6 +63,11 @@ pub struct Args {
     /// results do not depend on it.
     #[arg(long, value_name = "N")]
     pub threads: Option<std::num::NonZeroUsize>,
+    /// Exit with status 0 even when the run judges its result suspect
+    /// (report.json → health); without it such a run exits with status 3,
+    /// after writing every output.
+    #[arg(long)]
+    pub allow_suspect: bool,
 }
 
 pub fn run(args: Args) -> Result<()> {
@@ -95,7 +105,12 @@ pub fn run(args: Args) -> Result<()> {
     for warning in &report.warnings {
         tracing::warn!("{warning}");
     }
-    Ok(())
+    // The remedy names the mission as it was read.
+    let mut mission = args.mission.display().to_string();
+    if let Some(keyframes) = &args.keyframes {
+        mission += &format!(" --keyframes {}", keyframes.display());
+    }
+    super::check_health(&report.health, &mission, args.allow_suspect)
 }
 
 /// A progress bar over the nodes on stderr; hidden when stderr is not a

@@ -14,6 +14,9 @@ Examples:
   # A quick tank mission (2 min) with a config file overriding some defaults
   echofield simulate --scenario tank --seed 1 --output tank.mcap --config sim.toml
 
+  # The same with the beams thresholded as the published St Pere point sets
+  echofield simulate --scenario marina --seed 7 --point-sets --output marina-points.mcap
+
   # The St Pere replay: real DVL, MTi and beam times, simulated beams
   echofield simulate --scenario stpere --data datasets/stpere-marina --output stpere-sim.mcap
 
@@ -43,6 +46,11 @@ pub struct Args {
     /// Simulator configuration (TOML); defaults for missing keys.
     #[arg(long)]
     pub config: Option<PathBuf>,
+    /// Keep only what a thresholded point-set log keeps (the recipe of the
+    /// published St Pere point sets, `echofield_datasets::sim::point_sets`):
+    /// binary intensities, walls as bands.
+    #[arg(long)]
+    pub point_sets: bool,
     /// Folder of the St Pere logs (--scenario stpere only); default: the
     /// workspace's datasets/stpere-marina.
     #[arg(long)]
@@ -59,7 +67,10 @@ pub fn run(args: Args) -> Result<()> {
     }
     let scenario = Scenario::build(&args.scenario, config, args.data.as_deref())
         .with_context(|| format!("cannot set up scenario `{}`", args.scenario))?;
-    let mission = simulate_mission(&scenario, args.seed).context("simulation failed")?;
+    let mut mission = simulate_mission(&scenario, args.seed).context("simulation failed")?;
+    if args.point_sets {
+        echofield_datasets::sim::point_sets::to_point_sets(&mut mission.beams);
+    }
     if let Some(dir) = args.output.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir)
             .with_context(|| format!("cannot create folder {}", dir.display()))?;
@@ -109,6 +120,7 @@ mod tests {
             seed,
             output: dir.join(name),
             config,
+            point_sets: false,
             data: None,
         }
     }

@@ -8,10 +8,11 @@ use super::loops::LoopCloser;
 use super::nodes::{NodeData, build_nodes};
 use super::refine::refined_navigation;
 use super::result::{
-    DEAD_RECKONING_RATE_HZ, DeadReckoningReport, NodeRecord, ROBUST_WEIGHT_REJECTED, RejectReason,
-    Report, SequentialRecord, SkippedRotation, SlamOutput, SolverReport, StageTimings, TimeGap,
+    DEAD_RECKONING_RATE_HZ, DeadReckoningReport, IntensityReport, NodeRecord,
+    ROBUST_WEIGHT_REJECTED, RejectReason, Report, SequentialRecord, SkippedRotation, SlamOutput,
+    SolverReport, StageTimings, TimeGap,
 };
-use super::{ProgressSink, SlamError, check_sensors, odometry_scale, sequential};
+use super::{ProgressSink, SlamError, check_sensors, health, odometry_scale, sequential};
 use echofield_backend::edge_error;
 use echofield_frontend::dead_reckoning::{self, Navigation};
 use echofield_frontend::intensity::{self, IntensityKind};
@@ -22,19 +23,34 @@ use std::borrow::Cow;
 use std::collections::BTreeMap;
 use std::time::Instant;
 
-/// Detects binary (thresholded) intensities and gives their bands the
-/// profiles of [`intensity::band_profiles`], so that scans and images are
-/// built from a likelihood field with a peak (see that module).
-fn scan_only_profiles(mission: Cow<'_, Mission>) -> (Cow<'_, Mission>, IntensityKind) {
+/// Scan-only data: [`intensity::prepare`] on the mission's beams and a
+/// copy of the config when the beams' intensities are binary; the mission
+/// and the config are borrowed as they are otherwise. The effective config
+/// (`config.toml`) carries what was derived.
+fn prepare_scan_only<'m, 'c>(
+    mission: Cow<'m, Mission>,
+    config: &'c SlamConfig,
+) -> (Cow<'m, Mission>, Cow<'c, SlamConfig>, IntensityReport) {
     let kind = intensity::detect(&mission.beams);
-    match kind {
-        IntensityKind::Binary { level } if std::env::var_os("EF_RAW_BANDS").is_none() => {
-            let mut owned = mission.into_owned();
-            intensity::band_profiles(&mut owned.beams, level);
-            (Cow::Owned(owned), kind)
-        }
-        _ => (mission, kind),
+    if !matches!(kind, IntensityKind::Binary { .. }) {
+        let report = IntensityReport {
+            kind,
+            derived: Vec::new(),
+        };
+        return (mission, Cow::Borrowed(config), report);
     }
+    let mut mission = mission.into_owned();
+    let mut config = config.clone();
+    let prepared = intensity::prepare(
+        &mut mission.beams,
+        &mut config.segmentation,
+        &mut config.image,
+    );
+    let report = IntensityReport {
+        kind: prepared.kind,
+        derived: prepared.derived,
+    };
+    (Cow::Owned(mission), Cow::Owned(config), report)
 }
 
 /// The warning of a run whose sonar mounting nobody gave: the scans land
@@ -89,8 +105,8 @@ fn run(
         }
         other => SlamError::frontend("mounting", other),
     })?;
-    let (mission, intensity) = scan_only_profiles(mission);
-    let mission: &Mission = &mission;
+    let (mission, config, intensity) = prepare_scan_only(mission, config);
+    let (mission, config): (&Mission, &SlamConfig) = (&mission, &config);
     check_sensors(mission)?;
     let mut timings = StageTimings::default();
 
@@ -215,6 +231,8 @@ fn run(
             odometry_scale,
         },
         mounting: mission.mounting.clone(),
+        intensity,
+        health: health::assess(&nodes, &records, &sequential, &loops, &mission.mounting),
         warnings,
         ate_rmse_m: None,
         ate_rmse_dead_reckoning_m: None,

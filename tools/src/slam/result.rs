@@ -10,11 +10,13 @@
 //! evaluation aligns the estimate to it (SE(2), see [`crate::eval`]).
 
 use super::config::SlamConfig;
+use super::health::Health;
 use super::odometry_scale::OdometryScale;
 use crate::eval::{AteStats, RpeStats};
 use echofield_backend::SolveSummary;
 use echofield_frontend::dead_reckoning::gyro_check::YawRateCheck;
 use echofield_frontend::image::{AcousticImage, ImageConfig};
+use echofield_frontend::intensity::IntensityKind;
 use echofield_frontend::matcher::{MatchQuality, SearchWindow};
 use echofield_frontend::scan::Scan;
 use echofield_frontend::sensors::SensorMounting;
@@ -285,6 +287,14 @@ pub struct SolverReport {
     pub incremental_time_s: f64,
 }
 
+/// The intensity scale found in the beams (`echofield_frontend::intensity`).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct IntensityReport {
+    pub kind: IntensityKind,
+    /// Settings derived for binary data (`key = value`), empty otherwise.
+    pub derived: Vec<String>,
+}
+
 /// A rotation that did not become a node.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct SkippedRotation {
@@ -430,8 +440,14 @@ pub struct Report {
     /// The sensor mounting the run used: the mission's, with the config's
     /// `[mounting]` applied.
     pub mounting: SensorMounting,
+    /// What the beams' intensities are, and the settings scan-only
+    /// (binary) data changed.
+    pub intensity: IntensityReport,
     /// Warnings worth a user's attention (gaps, skipped rotations, ...).
     pub warnings: Vec<String>,
+    /// The run's judgement of its own result, without ground truth
+    /// ([`super::health`]).
+    pub health: Health,
     /// With ground truth: ATE RMSE of the optimised nodes after SE(2)
     /// alignment, metres.
     #[serde(skip_serializing_if = "Option::is_none")]
