@@ -3,7 +3,9 @@
 //! the mission's real navigation (`datasets/stpere-marina`).
 
 use echofield_datasets::stpere::keyframes::POINT_INTENSITY;
-use echofield_datasets::stpere::point_bands::{expand_point_bands, read_point_bands};
+use echofield_datasets::stpere::point_bands::{
+    ST_PERE_SETUP, expand_point_bands, read_point_bands,
+};
 use echofield_datasets::stpere::{SonarSetup, read_stpere_with_keyframes};
 use echofield_frontend::sensors::{MountingSource, SweepTiming};
 use std::path::{Path, PathBuf};
@@ -12,11 +14,7 @@ fn data(dir: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join(dir)
 }
 
-const SETUP: SonarSetup = SonarSetup {
-    range_m: 50.0,
-    bin_size_m: 0.1,
-    step_rad: 0.0314159,
-};
+const SETUP: SonarSetup = ST_PERE_SETUP;
 
 /// The 115 PCD files, expanded into a temporary folder.
 fn keyframe_folder() -> (tempfile::TempDir, usize) {

@@ -40,7 +40,7 @@
 //! peaked at each band's centre, bands weighted by their width, every band
 //! bin as a scan point, Gaussian-smoothed bands) and their figures on the
 //! real St Pere point sets and on simulated missions thresholded the same
-//! way are in `docs/real-data.md`.
+//! way are in README.md, section "Real data".
 
 use crate::image::ImageConfig;
 use crate::segmentation::SegmentationConfig;

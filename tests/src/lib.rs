@@ -81,22 +81,11 @@ pub fn ground_truth_odometry_scale(
 pub fn stpere_point_set_mission(
     sweep: echofield_frontend::sensors::SweepTiming,
 ) -> echofield_frontend::sensors::Mission {
-    use echofield_datasets::stpere::{SonarSetup, point_bands, read_stpere_with_keyframes};
-    let sonar = datasets_dir().join("stpere-marina-sonar");
+    use echofield_datasets::stpere::{point_bands, read_stpere_with_keyframes};
     let dir = tempfile::tempdir().expect("a temporary folder");
-    let setup = SonarSetup {
-        range_m: 50.0,
-        bin_size_m: 0.1,
-        step_rad: 0.0314159,
-    };
-    point_bands::expand_point_bands(
-        &sonar.join("bands.csv"),
-        &sonar.join("keyFrameTimeStamps.csv"),
-        &setup,
-        dir.path(),
-    )
-    .expect("the committed point bands expand");
-    read_stpere_with_keyframes(&datasets_dir().join("stpere-marina"), dir.path(), sweep)
+    let keyframes =
+        point_bands::committed_keyframes(dir.path()).expect("the committed point bands expand");
+    read_stpere_with_keyframes(&datasets_dir().join("stpere-marina"), &keyframes, sweep)
         .expect("the committed St Pere logs read")
         .0
         .mission

@@ -8,35 +8,20 @@ use echofield::slam::{
 };
 use echofield_datasets::mcap::{Ros2GroundTruth, read_mission, write_mission_ros2};
 use echofield_datasets::sim::{Mission, Scenario, SimConfig, simulate_mission};
-use echofield_datasets::stpere::SonarSetup;
-use echofield_datasets::stpere::point_bands::expand_point_bands;
+use echofield_datasets::stpere::point_bands::committed_keyframes;
 use echofield_frontend::sensors::{MountingSource, SensorMounting};
 use echofield_graph::Se2;
 use echofield_tests::datasets_dir;
-
-/// The MiniKing setup of the St Pere mission (`_SETUP.log`).
-const ST_PERE_SETUP: SonarSetup = SonarSetup {
-    range_m: 50.0,
-    bin_size_m: 0.1,
-    step_rad: 0.0314159,
-};
 
 /// The real St Pere rotations 1-115 with their navigation, read as
 /// `echofield run datasets/stpere-marina --keyframes KF_DIR` reads them
 /// under `config`'s sweep.
 fn st_pere_real(config: &SlamConfig) -> Mission {
     let dir = tempfile::tempdir().unwrap();
-    let sonar = datasets_dir().join("stpere-marina-sonar");
-    expand_point_bands(
-        &sonar.join("bands.csv"),
-        &sonar.join("keyFrameTimeStamps.csv"),
-        &ST_PERE_SETUP,
-        dir.path(),
-    )
-    .unwrap();
+    let keyframes = committed_keyframes(dir.path()).unwrap();
     load_mission_with_keyframes(
         &datasets_dir().join("stpere-marina"),
-        Some(dir.path()),
+        Some(&keyframes),
         config.mounting.sweep,
     )
     .unwrap()

@@ -21,24 +21,7 @@ fn echofield(args: &[&std::ffi::OsStr]) -> Output {
 /// The real St Pere point sets (`datasets/stpere-marina-sonar`, rotations
 /// 1-115) expanded into a keyframe folder in `dir`.
 fn st_pere_keyframes(dir: &Path) -> PathBuf {
-    use echofield_datasets::stpere::SonarSetup;
-    use echofield_datasets::stpere::point_bands::expand_point_bands;
-    let sonar = datasets().join("stpere-marina-sonar");
-    let keyframes = dir.join("keyframes");
-    // The MiniKing setup of the mission (`_SETUP.log`).
-    let setup = SonarSetup {
-        range_m: 50.0,
-        bin_size_m: 0.1,
-        step_rad: 0.0314159,
-    };
-    expand_point_bands(
-        &sonar.join("bands.csv"),
-        &sonar.join("keyFrameTimeStamps.csv"),
-        &setup,
-        &keyframes,
-    )
-    .unwrap();
-    keyframes
+    echofield_datasets::stpere::point_bands::committed_keyframes(dir).unwrap()
 }
 
 /// The DGPS-confirmed St Pere head (issue 34, fitted by hand against the

@@ -123,3 +123,46 @@ fn unreadable_input_fails_with_one_line_and_writes_nothing() {
     );
     assert!(!out.exists());
 }
+
+/// The real sonar point sets become beams beside the navigation: 200 per
+/// rotation, stamped under the sweep asked for, with the assumed mounting
+/// marked as such.
+#[test]
+fn stpere_keyframes_become_beams_and_bad_point_sets_name_file_line_and_field() {
+    use echofield_datasets::stpere::point_bands::committed_keyframes;
+    use echofield_frontend::sensors::{MountingSource, SweepTiming};
+    let dir = tempfile::tempdir().unwrap();
+    let keyframes = committed_keyframes(dir.path()).unwrap();
+    let kf = keyframes.to_str().unwrap();
+    let mission = convert_stpere(&["--keyframes", kf, "--sweep", "decreasing"]);
+    assert_eq!(mission.beams.len(), 115 * 200);
+    assert_eq!(mission.mounting.sweep, SweepTiming::AngleDecreasing);
+    assert_eq!(mission.mounting.source, MountingSource::Assumed);
+
+    // A point between two beams of the head's 1.8° grid, on line 12 of
+    // rotation 7's file.
+    let pcd = keyframes.join("pclKeyFrame7.pcd");
+    let text = std::fs::read_to_string(&pcd).unwrap();
+    let mut lines: Vec<&str> = text.lines().collect();
+    lines[11] = "10.0000 0.1571 0.0000";
+    std::fs::write(&pcd, lines.join("\n") + "\n").unwrap();
+    let out = dir.path().join("bad.mcap");
+    let input = data("stpere-marina");
+    let run = convert(&[
+        "stpere",
+        input.to_str().unwrap(),
+        "--keyframes",
+        kf,
+        "--output",
+        out.to_str().unwrap(),
+    ]);
+    assert!(!run.status.success());
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        stderr.contains("pclKeyFrame7.pcd")
+            && stderr.contains("line 12")
+            && stderr.contains("x, y"),
+        "{stderr}"
+    );
+    assert!(!out.exists());
+}

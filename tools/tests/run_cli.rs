@@ -98,24 +98,7 @@ fn the_thread_count_does_not_change_the_trajectory() {
 /// The real St Pere point sets (`datasets/stpere-marina-sonar`) expanded
 /// into a keyframe folder in `dir`.
 fn st_pere_keyframes(dir: &Path) -> PathBuf {
-    use echofield_datasets::stpere::SonarSetup;
-    use echofield_datasets::stpere::point_bands::expand_point_bands;
-    let sonar = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../datasets/stpere-marina-sonar");
-    let keyframes = dir.join("keyframes");
-    // The MiniKing setup of the mission (`_SETUP.log`).
-    let setup = SonarSetup {
-        range_m: 50.0,
-        bin_size_m: 0.1,
-        step_rad: 0.0314159,
-    };
-    expand_point_bands(
-        &sonar.join("bands.csv"),
-        &sonar.join("keyFrameTimeStamps.csv"),
-        &setup,
-        &keyframes,
-    )
-    .unwrap();
-    keyframes
+    echofield_datasets::stpere::point_bands::committed_keyframes(dir).unwrap()
 }
 
 /// A run that judges its result suspect (the real St Pere sonar under the

@@ -98,3 +98,27 @@ pub fn expand_point_bands(
     }
     Ok(total)
 }
+
+/// The sonar setup of the St Pere mission (`_SETUP.log`: 50 m, 500 bins
+/// of 0.1 m, 200 steps of 0.0314159 rad), which `bands.csv` is indexed by.
+pub const ST_PERE_SETUP: SonarSetup = SonarSetup {
+    range_m: 50.0,
+    bin_size_m: 0.1,
+    step_rad: 0.0314159,
+};
+
+/// The repository's committed St Pere point sets
+/// (`datasets/stpere-marina-sonar`, rotations 1-115) expanded into
+/// `out_dir/keyframes`; returns that folder, ready for
+/// [`super::read_stpere_with_keyframes`] or `--keyframes`.
+pub fn committed_keyframes(out_dir: &Path) -> Result<std::path::PathBuf, DatasetError> {
+    let sonar = Path::new(env!("CARGO_MANIFEST_DIR")).join("stpere-marina-sonar");
+    let keyframes = out_dir.join("keyframes");
+    expand_point_bands(
+        &sonar.join("bands.csv"),
+        &sonar.join(KEYFRAME_CSV),
+        &ST_PERE_SETUP,
+        &keyframes,
+    )?;
+    Ok(keyframes)
+}
