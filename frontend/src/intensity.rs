@@ -3,8 +3,8 @@
 //! Many published MSIS logs keep only the bins above a threshold (the St
 //! Pere point sets), or only one range per beam (a LaserScan). Rebuilt as
 //! beams, such data has one intensity where an echo passed the threshold
-//! and 0 elsewhere: a wall arrives as a *band* of bins, 1-3 m thick along
-//! range in the St Pere data (up to 14 m), a LaserScan return as a single
+//! and 0 elsewhere: a wall arrives as a *band* of bins, metres thick along
+//! range in the St Pere data, a LaserScan return as a single
 //! bin. [`detect`] recognises such data from the beams themselves.
 //!
 //! # How `S_k` and `I_k` are built from bands
@@ -125,11 +125,20 @@ pub fn widen_all(beams: &mut [SonarBeam], min_band_m: f64, min_bins: usize) {
 }
 
 /// Switches off the stages that compare intensities (module doc): what
-/// [`prepare`] changes in the settings of binary data.
-pub fn binary_settings(segmentation: &mut SegmentationConfig, image: &mut ImageConfig) {
+/// [`prepare`] changes in the settings of binary data. Returns the
+/// settings changed, as `key = value` with TOML paths.
+pub fn binary_settings(
+    segmentation: &mut SegmentationConfig,
+    image: &mut ImageConfig,
+) -> [&'static str; 3] {
     segmentation.off_axis.enabled = false;
     image.off_axis.enabled = false;
     segmentation.beam_width.enabled = false;
+    [
+        "segmentation.off_axis.enabled = false",
+        "image.off_axis.enabled = false",
+        "segmentation.beam_width.enabled = false",
+    ]
 }
 
 /// What [`prepare`] found and changed.
@@ -154,12 +163,20 @@ pub fn prepare(
     image: &mut ImageConfig,
 ) -> Preparation {
     let kind = detect(beams);
-    if !matches!(kind, IntensityKind::Binary { .. }) {
-        return Preparation {
-            kind,
-            derived: Vec::new(),
-        };
-    }
+    let derived = match kind {
+        IntensityKind::Binary { .. } => prepare_binary(beams, segmentation, image),
+        IntensityKind::Graded | IntensityKind::Empty => Vec::new(),
+    };
+    Preparation { kind, derived }
+}
+
+/// The binary part of [`prepare`], for a caller that has already
+/// [`detect`]ed binary intensities; returns what it derived.
+pub fn prepare_binary(
+    beams: &mut [SonarBeam],
+    segmentation: &mut SegmentationConfig,
+    image: &mut ImageConfig,
+) -> Vec<String> {
     // One level means "a return": at full scale, so that the thresholds
     // in counts (`segmentation.min_intensity`) treat every band alike.
     for v in beams.iter_mut().flat_map(|b| b.intensities.iter_mut()) {
@@ -169,16 +186,13 @@ pub fn prepare(
     }
     let min_band_m = 2.0 * image.cell_size_for(beams);
     widen_all(beams, min_band_m, segmentation.smoothing_bins);
-    binary_settings(segmentation, image);
-    Preparation {
-        kind,
-        derived: vec![
-            "segmentation.off_axis.enabled = false".into(),
-            "image.off_axis.enabled = false".into(),
-            "segmentation.beam_width.enabled = false".into(),
-            format!("bands thinner than {min_band_m:.2} m widened to it"),
-        ],
-    }
+    binary_settings(segmentation, image)
+        .into_iter()
+        .map(String::from)
+        .chain(std::iter::once(format!(
+            "bands thinner than {min_band_m:.2} m widened to it"
+        )))
+        .collect()
 }
 
 #[cfg(test)]

@@ -23,7 +23,6 @@
 //! (`crate::calibration`). Comparisons are meaningful between placements
 //! of the same returns only.
 
-use crate::dead_reckoning::Navigation;
 use crate::error::FrontendError;
 use crate::segmentation::{SegmentationConfig, extract_ranges_into};
 use crate::sensors::{SensorMounting, SonarBeam};
@@ -59,16 +58,6 @@ pub fn beam_returns(beams: &[SonarBeam], config: &SegmentationConfig) -> Vec<Bea
         }));
     }
     out
-}
-
-/// `returns` placed in the world along `nav` with `mounting` (module doc).
-/// Returns outside the navigation's span are left out.
-pub fn place_returns(
-    returns: &[BeamReturn],
-    nav: &Navigation,
-    mounting: &SensorMounting,
-) -> Vec<Vector2<f64>> {
-    place_with(returns, mounting, |t| nav.pose_at(t).ok())
 }
 
 /// `returns` placed with any `world_from_vehicle(t)`; `None` leaves a

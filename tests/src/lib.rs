@@ -76,19 +76,22 @@ pub fn ground_truth_odometry_scale(
 
 /// The real St Pere mission of `datasets/stpere-marina`, its beams rebuilt
 /// from the real sonar point sets of `datasets/stpere-marina-sonar`
-/// (rotations 1-115, expanded from their compact band form) under the
-/// assumed `sweep`, with the logged conventions in its mounting.
+/// (rotations 1-115, expanded from their compact band form), read as
+/// `echofield run datasets/stpere-marina --keyframes KF_DIR` reads them
+/// under the assumed `sweep` (`None`: the reader's default), with the
+/// logged conventions in its mounting.
 pub fn stpere_point_set_mission(
-    sweep: echofield_frontend::sensors::SweepTiming,
+    sweep: Option<echofield_frontend::sensors::SweepTiming>,
 ) -> echofield_frontend::sensors::Mission {
-    use echofield_datasets::stpere::{point_bands, read_stpere_with_keyframes};
     let dir = tempfile::tempdir().expect("a temporary folder");
-    let keyframes =
-        point_bands::committed_keyframes(dir.path()).expect("the committed point bands expand");
-    read_stpere_with_keyframes(&datasets_dir().join("stpere-marina"), &keyframes, sweep)
-        .expect("the committed St Pere logs read")
-        .0
-        .mission
+    let keyframes = echofield_datasets::stpere::point_bands::committed_keyframes(dir.path())
+        .expect("the committed point bands expand");
+    echofield::slam::load_mission_with_keyframes(
+        &datasets_dir().join("stpere-marina"),
+        Some(&keyframes),
+        sweep,
+    )
+    .expect("the committed St Pere logs read")
 }
 
 /// The St Pere sonar conventions that the DGPS track confirms (fitted by

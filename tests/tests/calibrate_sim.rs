@@ -76,27 +76,21 @@ fn a_mirrored_head_recorded_counter_clockwise_comes_out_clockwise() {
         beam.angle_rad = wrap_angle(-beam.angle_rad);
     }
     m.mounting.sonar_angle = AngleDirection::CounterClockwise;
-    let result = calibrate(&m);
-    assert_eq!(result.sonar_angle.value, AngleDirection::Clockwise);
-    assert!(
-        result.sonar_angle.vote.determined,
-        "{:?}",
-        result.sonar_angle
-    );
-    let (_, yaw) = true_head();
-    assert!(
-        yaw_error_deg(&result, yaw) < 1.0,
-        "{:?}",
-        result.sonar_yaw_rad
-    );
+    assert_sign_and_yaw(&m, AngleDirection::Clockwise);
 }
 
 #[test]
 fn a_head_recorded_clockwise_comes_out_counter_clockwise() {
     let mut m = marina_start().clone();
     m.mounting.sonar_angle = AngleDirection::Clockwise;
-    let result = calibrate(&m);
-    assert_eq!(result.sonar_angle.value, AngleDirection::CounterClockwise);
+    assert_sign_and_yaw(&m, AngleDirection::CounterClockwise);
+}
+
+/// Calibrates `m` and checks that the sign comes out as `expected`, decided
+/// by the data, and the yaw within 1° of the simulator's.
+fn assert_sign_and_yaw(m: &Mission, expected: AngleDirection) {
+    let result = calibrate(m);
+    assert_eq!(result.sonar_angle.value, expected);
     assert!(
         result.sonar_angle.vote.determined,
         "{:?}",

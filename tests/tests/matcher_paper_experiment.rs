@@ -180,7 +180,7 @@ fn simulated_tank_mission_as_ranges_only() {
 /// navigation covers), with the conventions the DGPS confirms.
 #[test]
 fn real_st_pere_point_sets() {
-    let mission = stpere_point_set_mission(SweepTiming::AngleDecreasing);
+    let mission = stpere_point_set_mission(Some(SweepTiming::AngleDecreasing));
     let mission = stpere_dgps_conventions()
         .apply(&mission)
         .unwrap()

@@ -3,40 +3,27 @@
 //! missions whose mounting is wrong.
 
 use echofield::slam::health::{Cause, Check, Verdict};
-use echofield::slam::{
-    NoProgress, SlamConfig, SlamOutput, load_mission_with_keyframes, run_mission,
-};
+use echofield::slam::{NoProgress, SlamConfig, SlamOutput, run_mission};
 use echofield_datasets::mcap::{Ros2GroundTruth, read_mission, write_mission_ros2};
 use echofield_datasets::sim::{Mission, Scenario, SimConfig, simulate_mission};
-use echofield_datasets::stpere::point_bands::committed_keyframes;
 use echofield_frontend::sensors::{MountingSource, SensorMounting};
 use echofield_graph::Se2;
-use echofield_tests::datasets_dir;
+use echofield_tests::{stpere_dgps_conventions, stpere_point_set_mission};
 
-/// The real St Pere rotations 1-115 with their navigation, read as
-/// `echofield run datasets/stpere-marina --keyframes KF_DIR` reads them
-/// under `config`'s sweep.
+/// The real St Pere rotations 1-115 under `config`'s assumed sweep.
 fn st_pere_real(config: &SlamConfig) -> Mission {
-    let dir = tempfile::tempdir().unwrap();
-    let keyframes = committed_keyframes(dir.path()).unwrap();
-    load_mission_with_keyframes(
-        &datasets_dir().join("stpere-marina"),
-        Some(&keyframes),
-        config.mounting.sweep,
-    )
-    .unwrap()
+    stpere_point_set_mission(config.mounting.sweep)
 }
 
-/// The conventions `echofield calibrate` finds for the St Pere head (about
-/// these values; written out literally so that this test does not depend
-/// on the calibration): the head's zero 246° counter-clockwise from the
-/// vehicle's x axis, its angle running clockwise, decreasing with time.
-const ST_PERE_CALIBRATED: &str = "\
-[mounting]
-sonar_yaw_deg = 246.0
-sonar_angle = \"clockwise\"
-sweep = \"angle_decreasing\"
-";
+/// The conventions `echofield calibrate` finds for the St Pere head
+/// (about these values; the DGPS-confirmed ones, given literally so that
+/// this test does not depend on the calibration).
+fn st_pere_calibrated() -> SlamConfig {
+    SlamConfig {
+        mounting: stpere_dgps_conventions(),
+        ..SlamConfig::default()
+    }
+}
 
 /// `scenario` simulated with the sonar head at `vehicle_from_sonar`.
 fn simulated_with_head(scenario: &str, seed: u64, vehicle_from_sonar: Se2) -> Mission {
@@ -100,7 +87,7 @@ fn st_pere_with_the_logged_conventions_is_suspect() {
 
 #[test]
 fn st_pere_with_the_calibrated_conventions_is_ok() {
-    let config = SlamConfig::from_toml_str(ST_PERE_CALIBRATED).unwrap();
+    let config = st_pere_calibrated();
     let output = run(&st_pere_real(&config), &config);
     let health = &output.report.health;
     assert_eq!(health.verdict, Verdict::Ok, "{health:#?}");
@@ -210,7 +197,7 @@ fn health_figures_on_every_mission() {
         line("stpere-logged", &run(&st_pere_real(&default), &default));
     }
     if want("stpere-calibrated") {
-        let config = SlamConfig::from_toml_str(ST_PERE_CALIBRATED).unwrap();
+        let config = st_pere_calibrated();
         line("stpere-calibrated", &run(&st_pere_real(&config), &config));
     }
     for (scenario, seeds) in [("tank", 1..=3), ("canyon", 1..=2), ("marina", 1..=5)] {

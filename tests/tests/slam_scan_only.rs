@@ -20,6 +20,16 @@ fn run(mission: &Mission) -> echofield::slam::Report {
         .report
 }
 
+/// The run's ATE and the dead reckoning's, metres (printed).
+fn ate_and_dead_reckoning(report: &echofield::slam::Report) -> (f64, f64) {
+    let (ate, dr) = (
+        report.ate_rmse_m.unwrap(),
+        report.ate_rmse_dead_reckoning_m.unwrap(),
+    );
+    eprintln!("ATE {ate:.3} m, dead reckoning {dr:.3} m");
+    (ate, dr)
+}
+
 #[test]
 fn point_sets_are_detected_and_still_remove_the_drift() {
     let mut mission = replay();
@@ -40,12 +50,8 @@ fn point_sets_are_detected_and_still_remove_the_drift() {
         "{:?}",
         report.intensity.derived
     );
-    let (ate, dr) = (
-        report.ate_rmse_m.unwrap(),
-        report.ate_rmse_dead_reckoning_m.unwrap(),
-    );
-    eprintln!("ATE {ate:.3} m, dead reckoning {dr:.3} m");
-    // Measured (docs/real-data.md): 0.26 m against 3.09 m of dead reckoning;
+    let (ate, dr) = ate_and_dead_reckoning(&report);
+    // Measured (README.md, "Real data"): 0.26 m against 3.09 m of dead reckoning;
     // the graded beams of the same replay give 0.20 m.
     assert!(
         ate < 0.45 && ate * 5.0 < dr,
@@ -72,11 +78,7 @@ fn ranges_only_are_detected_and_still_remove_the_drift() {
     }
     let report = run(&mission);
     assert_eq!(report.intensity.kind, IntensityKind::Binary { level: 1 });
-    let (ate, dr) = (
-        report.ate_rmse_m.unwrap(),
-        report.ate_rmse_dead_reckoning_m.unwrap(),
-    );
-    eprintln!("ATE {ate:.3} m, dead reckoning {dr:.3} m");
+    let (ate, dr) = ate_and_dead_reckoning(&report);
     assert!(
         ate < 0.6 && ate * 4.0 < dr,
         "ATE {ate} m, dead reckoning {dr} m"

@@ -22,7 +22,7 @@ fn calibrated_run() -> &'static SlamOutput {
     RUN.get_or_init(|| {
         // Rebuilt under the converter's default assumption (angle
         // increasing); calibrate decides the sweep with the rest.
-        let mission = stpere_point_set_mission(SweepTiming::AngleIncreasing);
+        let mission = stpere_point_set_mission(Some(SweepTiming::AngleIncreasing));
         let calibration = calibrate_mission(&mission, &CalibrateSettings::default()).unwrap();
         let config = SlamConfig {
             mounting: calibration.mounting_config(),

@@ -23,7 +23,7 @@ use std::borrow::Cow;
 use std::collections::BTreeMap;
 use std::time::Instant;
 
-/// Scan-only data: [`intensity::prepare`] on the mission's beams and a
+/// Scan-only data: [`intensity::prepare_binary`] on the mission's beams and a
 /// copy of the config when the beams' intensities are binary; the mission
 /// and the config are borrowed as they are otherwise. The effective config
 /// (`config.toml`) carries what was derived.
@@ -41,15 +41,12 @@ fn prepare_scan_only<'m, 'c>(
     }
     let mut mission = mission.into_owned();
     let mut config = config.clone();
-    let prepared = intensity::prepare(
+    let derived = intensity::prepare_binary(
         &mut mission.beams,
         &mut config.segmentation,
         &mut config.image,
     );
-    let report = IntensityReport {
-        kind: prepared.kind,
-        derived: prepared.derived,
-    };
+    let report = IntensityReport { kind, derived };
     (Cow::Owned(mission), Cow::Owned(config), report)
 }
 
