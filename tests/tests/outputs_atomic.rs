@@ -1,11 +1,13 @@
-//! A failure while writing the outputs leaves the files written before it
-//! complete, the files after it untouched, and no temporary file behind.
+//! The output folder is written whole: a failure while writing leaves the
+//! previous output as it was (or no folder at all) and no temporary file
+//! or folder behind; what is written does not depend on the threads.
 
+use echofield::output::folder::OutputFolder;
 use echofield::slam::outputs::demo::simulated_run;
-use echofield::slam::outputs::write_outputs;
+use echofield::slam::outputs::{FOLDER_FILES, write_output_files, write_outputs};
 use echofield::slam::{SlamConfig, SlamOutput};
 use echofield_frontend::sensors::Mission;
-use echofield_graph::io::read_tum;
+use std::collections::BTreeMap;
 use std::path::Path;
 
 /// The outputs written before `mosaic.png` and after it (module doc of
@@ -27,6 +29,7 @@ fn run() -> (Mission, SlamOutput) {
     simulated_run("tank", 2, &SlamConfig::default()).unwrap()
 }
 
+/// Entries named like echofield's temporary files and folders.
 fn temporary_files(dir: &Path) -> Vec<String> {
     std::fs::read_dir(dir)
         .unwrap()
@@ -35,73 +38,77 @@ fn temporary_files(dir: &Path) -> Vec<String> {
         .collect()
 }
 
-#[test]
-fn failure_midway_keeps_earlier_files_and_leaves_no_temporary_file() {
-    let (mission, output) = run();
-    let dir = tempfile::tempdir().unwrap();
+/// Every file of `dir` by name.
+fn snapshot(dir: &Path) -> BTreeMap<String, Vec<u8>> {
+    std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| {
+            let e = e.unwrap();
+            (
+                e.file_name().to_string_lossy().into_owned(),
+                std::fs::read(e.path()).unwrap(),
+            )
+        })
+        .collect()
+}
 
-    // A first complete run.
-    write_outputs(dir.path(), &output, &mission).unwrap();
-    let old_report = std::fs::read(dir.path().join("report.json")).unwrap();
-    let old_mcap = std::fs::read(dir.path().join("mission.mcap")).unwrap();
-
-    // Second run with a different config and report; `mosaic.png` cannot
-    // be replaced because a folder now sits at its path.
-    let mut changed = output.clone();
-    changed.config.loops.min_separation_nodes += 3;
-    changed.report.mission = "second run".into();
-    std::fs::remove_file(dir.path().join("mosaic.png")).unwrap();
-    std::fs::create_dir(dir.path().join("mosaic.png")).unwrap();
-    std::fs::write(dir.path().join("mosaic.png").join("keep"), b"x").unwrap();
-    let err = write_outputs(dir.path(), &changed, &mission).unwrap_err();
-    assert!(format!("{err:#}").contains("mosaic.png"), "{err:#}");
-
-    // Files before the failure are the new, complete ones.
-    let config = std::fs::read_to_string(dir.path().join("config.toml")).unwrap();
-    assert_eq!(SlamConfig::from_toml_str(&config).unwrap(), changed.config);
+/// Writes `output` into a fresh folder for `target` in which `mosaic.png`
+/// cannot be written (a folder sits at its path), so that writing fails
+/// after the files before it.
+fn write_failing_at_the_mosaic(target: &Path, output: &SlamOutput, mission: &Mission) -> String {
+    let folder = OutputFolder::prepare(target, FOLDER_FILES).unwrap();
+    std::fs::create_dir(folder.path().join("mosaic.png")).unwrap();
+    std::fs::write(folder.path().join("mosaic.png").join("keep"), b"x").unwrap();
+    let err = write_output_files(folder.path(), output, mission).unwrap_err();
+    // Written up to the failure.
     for name in BEFORE {
-        assert!(dir.path().join(name).is_file(), "{name} missing");
+        assert!(folder.path().join(name).is_file(), "{name} missing");
     }
-    let tum = read_tum(&dir.path().join("trajectory_tum.txt")).unwrap();
-    assert_eq!(tum.len(), output.nodes.len());
-    image::open(dir.path().join("loops.png")).unwrap();
-    // Files after it are the first run's, byte for byte.
-    for name in AFTER {
-        assert!(dir.path().join(name).is_file(), "{name} missing");
-    }
-    assert_eq!(
-        std::fs::read(dir.path().join("report.json")).unwrap(),
-        old_report
-    );
-    assert_eq!(
-        std::fs::read(dir.path().join("mission.mcap")).unwrap(),
-        old_mcap
-    );
-    assert!(
-        temporary_files(dir.path()).is_empty(),
-        "{:?}",
-        temporary_files(dir.path())
-    );
+    format!("{err:#}")
+    // `folder` is dropped here, uncommitted.
 }
 
 #[test]
-fn failure_in_a_fresh_folder_writes_nothing_after_it() {
+fn failure_midway_keeps_the_previous_output_whole_and_leaves_no_temporary_file() {
     let (mission, output) = run();
     let dir = tempfile::tempdir().unwrap();
-    // The MCAP writer cannot rename onto a non-empty folder.
-    std::fs::create_dir(dir.path().join("mission.mcap")).unwrap();
-    std::fs::write(dir.path().join("mission.mcap").join("keep"), b"x").unwrap();
-    let err = write_outputs(dir.path(), &output, &mission).unwrap_err();
-    assert!(format!("{err:#}").contains("mission.mcap"), "{err:#}");
-    for name in BEFORE.iter().chain(&["mosaic.png", "mosaic.pgw"]) {
-        assert!(dir.path().join(name).is_file(), "{name} missing");
+    let target = dir.path().join("out");
+
+    // A first complete run.
+    write_outputs(&target, &output, &mission).unwrap();
+    let previous = snapshot(&target);
+    for name in BEFORE.iter().chain(&AFTER) {
+        assert!(previous.contains_key(*name), "{name} missing");
     }
-    assert!(!dir.path().join("report.json").exists());
+
+    // A second run with a different config and report fails midway.
+    let mut changed = output.clone();
+    changed.config.loops.min_separation_nodes += 3;
+    changed.report.mission = "second run".into();
+    let err = write_failing_at_the_mosaic(&target, &changed, &mission);
+    assert!(err.contains("mosaic.png"), "{err}");
+
+    // The target is the first run's output, byte for byte, and nothing else
+    // is left beside it or in it.
+    assert!(snapshot(&target) == previous, "the previous output changed");
+    assert!(temporary_files(&target).is_empty());
     assert!(
         temporary_files(dir.path()).is_empty(),
         "{:?}",
         temporary_files(dir.path())
     );
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+}
+
+#[test]
+fn failure_in_a_fresh_folder_leaves_no_folder() {
+    let (mission, output) = run();
+    let dir = tempfile::tempdir().unwrap();
+    let target = dir.path().join("a/b/out");
+    let err = write_failing_at_the_mosaic(&target, &output, &mission);
+    assert!(err.contains("mosaic.png"), "{err}");
+    // Neither the target nor the parents created for it are left.
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
 }
 
 #[test]

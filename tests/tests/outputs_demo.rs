@@ -12,7 +12,7 @@ fn demo_simulates_runs_and_writes_every_output() {
     let out = dir.path().join("demo");
     let scenario = Scenario::named("tank").unwrap();
     let config = SlamConfig::from_toml_str("[loops]\nmin_separation_nodes = 4\n").unwrap();
-    let summary = run_demo(&out, &scenario, 3, &config, &NoProgress).unwrap();
+    let summary = run_demo(&out, &scenario, 3, &config, None, &NoProgress).unwrap();
 
     // The simulated input is kept and is the seed's mission.
     let kept = read_mission(&out.join(SIMULATED_MISSION)).unwrap();

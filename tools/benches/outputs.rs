@@ -28,7 +28,8 @@ fn outputs(c: &mut Criterion) {
         .sample_size(10)
         .measurement_time(Duration::from_secs(20));
     group.bench_function("write_outputs", |b| {
-        b.iter(|| write_outputs(dir.path(), &output, &mission).unwrap())
+        let out = dir.path().join("out");
+        b.iter(|| write_outputs(&out, &output, &mission).unwrap())
     });
     group.bench_function("mosaic_grid", |b| b.iter(|| mosaic_grid(&output).unwrap()));
     let loops: Vec<LoopRow> = output.loops.iter().map(LoopRow::from_record).collect();

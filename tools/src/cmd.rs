@@ -26,6 +26,17 @@ pub fn set_threads(threads: Option<std::num::NonZeroUsize>) -> anyhow::Result<()
     Ok(())
 }
 
+/// Checks before any work that each given output file can be written
+/// ([`echofield::output::prepare_output_file`]).
+pub fn prepare_output_files<'a>(
+    paths: impl IntoIterator<Item = Option<&'a std::path::PathBuf>>,
+) -> anyhow::Result<()> {
+    for path in paths.into_iter().flatten() {
+        echofield::output::prepare_output_file(path)?;
+    }
+    Ok(())
+}
+
 /// The error of a run that wrote every output but judged its result
 /// suspect (`report.json` → `health`); `main` exits with
 /// [`SUSPECT_EXIT_STATUS`](echofield::slam::health::SUSPECT_EXIT_STATUS).

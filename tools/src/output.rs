@@ -1,6 +1,15 @@
-//! Atomic output files: write to a temporary file in the destination folder,
-//! flush, then rename over the destination, so a reader never sees a
-//! half-written file and an interrupted run leaves the previous file intact.
+//! Atomic outputs. A file is written to a temporary file in the
+//! destination folder, flushed, then renamed over the destination
+//! ([`write_atomic`]), so a reader never sees a half-written file and an
+//! interrupted run leaves the previous file intact. A folder of outputs is
+//! written into a fresh folder beside its target and swapped in whole
+//! ([`folder::OutputFolder`]). Both are checked before any work
+//! ([`prepare_output_file`], [`folder::OutputFolder::prepare`]), and what a
+//! killed run left behind is recognised and removed by the next one
+//! ([`stale`]).
+
+pub mod folder;
+pub mod stale;
 
 use anyhow::{Context, Result};
 use std::io::{BufWriter, Write};
@@ -20,7 +29,8 @@ where
     // Finished outputs are ordinary files (0644 before the umask), not the
     // 0600 that temporary files get by default.
     let mut builder = tempfile::Builder::new();
-    builder.prefix(".echofield-").suffix(".tmp");
+    let prefix = stale::own_prefix();
+    builder.prefix(&prefix).suffix(".tmp");
     #[cfg(unix)]
     builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o644));
     let tmp = builder
@@ -41,6 +51,35 @@ where
     tmp.persist(path)
         .map_err(|e| e.error)
         .with_context(|| format!("cannot move the finished file to {}", path.display()))?;
+    Ok(())
+}
+
+/// Checks before any work that the output file `path` can be written:
+/// it is not a folder, its parent folders exist (created if needed) and a
+/// file can be created there. Removes the temporary files that killed runs
+/// left in that folder ([`stale::clean`]). The error names the path.
+pub fn prepare_output_file(path: &Path) -> Result<()> {
+    if path.file_name().is_none() || path.is_dir() {
+        anyhow::bail!("the output {} is a folder, not a file", path.display());
+    }
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    std::fs::create_dir_all(dir).with_context(|| {
+        format!(
+            "cannot create the folder {} for the output {}",
+            dir.display(),
+            path.display()
+        )
+    })?;
+    stale::clean(dir);
+    let prefix = stale::own_prefix();
+    tempfile::Builder::new()
+        .prefix(&prefix)
+        .suffix(".tmp")
+        .tempfile_in(dir)
+        .with_context(|| format!("cannot write the output {}", path.display()))?;
     Ok(())
 }
 

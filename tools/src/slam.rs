@@ -66,7 +66,7 @@ pub use error::SlamError;
 pub use loops::LoopConfig;
 pub use pipeline::run_mission;
 pub use result::{
-    IntensityReport, LoopRecord, NodeRecord, RecallBin, RecallBudget, RejectReason, Report,
+    IntensityReport, LoopRecord, NodeRecord, RecallBin, RecallBudget, RejectReason, Report, RunInfo,
     SequentialRecord, SlamOutput, StageTimings,
 };
 

@@ -49,8 +49,12 @@ impl McapFile {
             Some(p) if !p.as_os_str().is_empty() => p,
             _ => Path::new("."),
         };
+        // `.echofield-{pid}-`: the owner's pid lets a later run tell the
+        // temporary file of a killed run from one being written
+        // (`echofield::output::stale`).
+        let prefix = format!(".echofield-{}-", std::process::id());
         let temp = tempfile::Builder::new()
-            .prefix(".echofield-")
+            .prefix(&prefix)
             .suffix(".mcap.tmp")
             .tempfile_in(dir)
             .map_err(|e| DatasetError::io(dir, e))?;

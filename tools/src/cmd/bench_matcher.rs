@@ -106,6 +106,7 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> Result<()> {
+    super::prepare_output_files([args.json.as_ref()])?;
     let config = match &args.config {
         Some(path) => MatchingConfig::from_toml_file(path)?,
         None => MatchingConfig::default(),

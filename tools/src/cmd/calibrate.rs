@@ -81,6 +81,7 @@ struct JsonReport<'a> {
 }
 
 pub fn run(args: Args) -> Result<()> {
+    super::prepare_output_files([Some(&args.output), args.json.as_ref()])?;
     let settings = CalibrateSettings::from_optional_file(args.config.as_deref())?;
     let start = Instant::now();
     let mission = load_mission_with_keyframes(

@@ -116,6 +116,7 @@ pub fn run(args: Args) -> Result<()> {
 }
 
 fn stpere(args: &StPereArgs) -> Result<()> {
+    super::prepare_output_files([Some(&args.output)])?;
     anyhow::ensure!(
         args.yaw_offset_deg.is_finite(),
         "--yaw-offset-deg must be finite"
@@ -192,6 +193,7 @@ fn sonar(
     args: &SonarArgs,
     read: fn(&Path) -> Result<SonarRecording, echofield_datasets::DatasetError>,
 ) -> Result<()> {
+    super::prepare_output_files([Some(&args.output)])?;
     let recording =
         read(&args.input).with_context(|| format!("cannot read {}", args.input.display()))?;
     let s = &recording.stats;

@@ -29,7 +29,8 @@ config.toml.
 Exit status: as for `echofield run`: 3 when the run judges its own result
 suspect (report.json → health), unless --allow-suspect; 1 for any error.")]
 pub struct Args {
-    /// Output folder (created if needed).
+    /// Output folder (created if needed). Replaced whole at the end; only
+    /// an empty folder or an earlier echofield output is replaced.
     #[arg(long, short)]
     pub output: PathBuf,
     /// Seed of the simulation.
@@ -62,8 +63,10 @@ pub fn run(args: Args) -> Result<()> {
         &scenario,
         args.seed,
         &config,
+        args.config.as_deref(),
         &BarProgress::new(),
-    )?;
+    )
+    .with_context(|| format!("demo into {}", args.output.display()))?;
     println!("{}", summary.text());
     let mission = summary.mission_path.display().to_string();
     super::check_health(&summary.output.report.health, &mission, args.allow_suspect)

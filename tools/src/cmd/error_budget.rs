@@ -46,6 +46,7 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> Result<()> {
+    super::prepare_output_files([args.json.as_ref()])?;
     let config = SlamConfig::from_optional_toml_file(args.config.as_deref())?;
     let mission = load_mission(&args.mission)?;
     let output = run_mission(&mission, &config, &NoProgress)

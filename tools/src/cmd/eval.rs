@@ -47,6 +47,7 @@ struct Report {
 }
 
 pub fn run(args: Args) -> Result<()> {
+    super::prepare_output_files([args.json.as_ref()])?;
     let estimate = read_tum(&args.estimate).context("reading the estimate")?;
     let reference = read_tum(&args.reference).context("reading the reference")?;
     let ate = ate(&estimate, &reference, args.align, args.max_time_diff)?;

@@ -133,6 +133,7 @@ struct SummaryFile<'a> {
 }
 
 pub fn run(args: Args) -> Result<()> {
+    super::prepare_output_files([Some(&args.output), args.summary.as_ref()])?;
     let config = args.config();
     config.validate().context("invalid solver options")?;
     let start = read_pose_graph(&args.input)

@@ -4,8 +4,11 @@
 //! writes the outputs.
 
 use anyhow::{Context, Result};
-use echofield::slam::outputs::write_outputs;
-use echofield::slam::{ProgressSink, SlamConfig, load_mission_with_keyframes, run_mission};
+use echofield::output::folder::OutputFolder;
+use echofield::slam::outputs::{FOLDER_FILES, write_output_files};
+use echofield::slam::{
+    ProgressSink, RunInfo, SlamConfig, load_mission_with_keyframes, run_mission,
+};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -35,6 +38,11 @@ its own result suspect (report.json → health: the sonar and the navigation
 disagree, as with a wrong sonar mounting; the summary names the likely cause
 and the remedy), unless --allow-suspect is given; 1 for any error.
 
+OUTPUT is checked before any work and written whole: the outputs go into a
+fresh folder beside it that replaces it at the end, so OUTPUT is always the
+previous complete output or the new one. Only an empty folder or an earlier
+echofield output is replaced; report.json → run names the run that wrote it.
+
 The config sections are [mounting], [dead_reckoning], [rotation], [segmentation],
 [image], [matcher], [sequential], [loops], [backend] and [evaluation]; see
 tools/configs/default.toml for every key with its default and unit. The
@@ -56,7 +64,9 @@ pub struct Args {
     /// the config's `[mounting] sweep` (default `angle_increasing`).
     #[arg(long, value_name = "KF_DIR")]
     pub keyframes: Option<PathBuf>,
-    /// Output folder (created if needed).
+    /// Output folder (created if needed). Checked before any work and
+    /// replaced whole at the end; only an empty folder or an earlier
+    /// echofield output is replaced.
     #[arg(long, short)]
     pub output: PathBuf,
     /// Worker threads (default: one per core, or RAYON_NUM_THREADS); the
@@ -71,8 +81,13 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> Result<()> {
+    let mut inputs = vec![args.mission.as_path()];
+    inputs.extend(args.keyframes.as_deref());
+    let run_info = RunInfo::start("run", &inputs, args.config.as_deref(), &args.output);
     super::set_threads(args.threads)?;
     let config = SlamConfig::from_optional_toml_file(args.config.as_deref())?;
+    // Before any work: a folder that cannot be written fails now.
+    let folder = OutputFolder::prepare(&args.output, FOLDER_FILES)?;
     let start = Instant::now();
     let mission = load_mission_with_keyframes(
         &args.mission,
@@ -84,7 +99,9 @@ pub fn run(args: Args) -> Result<()> {
     let mut output = run_mission(&mission, &config, &progress)
         .with_context(|| format!("SLAM on {} failed", args.mission.display()))?;
     output.report.timings.reading_s = Some(reading_s);
-    write_outputs(&args.output, &output, &mission)
+    output.report.run = Some(run_info);
+    write_output_files(folder.path(), &output, &mission)
+        .and_then(|()| folder.commit())
         .with_context(|| format!("cannot write the outputs into {}", args.output.display()))?;
     let report = &output.report;
     println!(

@@ -58,6 +58,8 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> Result<()> {
+    let config_path = effective_config_path(&args.output);
+    super::prepare_output_files([Some(&args.output), Some(&config_path)])?;
     let config = match &args.config {
         Some(path) => read_config(path)?,
         None => SimConfig::default(),
@@ -78,7 +80,6 @@ pub fn run(args: Args) -> Result<()> {
     write_mission(&args.output, &mission)?;
     let effective =
         toml::to_string_pretty(scenario.config()).context("cannot serialise the config")?;
-    let config_path = effective_config_path(&args.output);
     write_bytes_atomic(&config_path, effective.as_bytes())?;
     let truth = scenario.ground_truth();
     println!(

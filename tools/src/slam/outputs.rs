@@ -19,16 +19,18 @@
 //! `evo_ape tum ground_truth_tum.txt trajectory_tum.txt -a` and
 //! `echofield eval` associate every pose exactly.
 //!
-//! Every file is written atomically (a temporary file in `dir`, renamed
-//! over the destination when complete), in the order above: if writing
-//! stops on an error, the files before it are complete and new, the ones
-//! after it are untouched, and no temporary file is left. `mission.mcap`
-//! is encoded while the files before it are written, on another thread
-//! when the pool has one, but takes its place only after them. On two
-//! threads that took the writing of the St Pere replay's outputs from
-//! 0.41 to 0.23 s (medians of five runs). `report.json`
-//! comes last, so its presence with a fresh `time_s` marks a complete
-//! folder.
+//! The folder is written whole: [`write_outputs`] writes into a fresh
+//! folder beside the target and swaps it in at the end
+//! ([`OutputFolder`]), so the target is always the previous complete
+//! output or the new complete one, never a mix, and an error leaves no
+//! trace. Commands that must check the target before their work (`run`,
+//! `demo`) prepare the [`OutputFolder`] themselves and write into it with
+//! [`write_output_files`]. A folder is replaced only when it is empty or
+//! an earlier output (a `report.json` of echofield's, and nothing but
+//! [`FOLDER_FILES`]); `report.json` → `run` says which run wrote it.
+//! Within the fresh folder every file is still written atomically, in the
+//! order above; `mission.mcap` is encoded while the files before it are
+//! written, on another thread when the pool has one.
 
 pub mod demo;
 pub mod foxglove;
@@ -37,6 +39,7 @@ pub mod mosaic;
 pub mod precision_recall;
 
 use crate::eval::align_se2;
+use crate::output::folder::OutputFolder;
 use crate::output::write_atomic;
 use crate::plots::loops::{LoopClass, LoopSegment, loops_png};
 use crate::plots::trajectory::{DEAD_RECKONING, GROUND_TRUTH, OPTIMISED, Track, trajectory_png};
@@ -54,13 +57,44 @@ use std::time::Instant;
 /// Size of `trajectory.png` and `loops.png`, pixels.
 pub const PLOT_SIZE_PX: (u32, u32) = (1100, 1000);
 
-/// Writes every output of `output` into `dir` (created if needed). See the
-/// module doc for the files, their order and the atomicity guarantees.
-/// `mission` is the run's input (its sensor mounting goes into
-/// `mission.mcap`).
-pub fn write_outputs(dir: &Path, output: &SlamOutput, mission: &Mission) -> Result<()> {
+/// Every file name an output folder of `echofield run` or `demo` may hold:
+/// the outputs above, the demo's input and the curves `echofield
+/// eval-loops` writes beside them by default. A folder holding anything
+/// else is not replaced ([`OutputFolder::prepare`]).
+pub const FOLDER_FILES: &[&str] = &[
+    "config.toml",
+    "trajectory_tum.txt",
+    "dead_reckoning_tum.txt",
+    "ground_truth_tum.txt",
+    "poses.csv",
+    "graph.g2o",
+    "loops.csv",
+    "trajectory.png",
+    "loops.png",
+    "mosaic.png",
+    "mosaic.pgw",
+    "mission.mcap",
+    "report.json",
+    demo::SIMULATED_MISSION,
+    "loops_pr.csv",
+    "loops_pr.png",
+];
+
+/// Writes every output of `output` as the folder `target`, whole (see the
+/// module doc): prepares a fresh folder beside it, writes the files into
+/// it with [`write_output_files`] and swaps it in. `mission` is the run's
+/// input (its sensor mounting goes into `mission.mcap`).
+pub fn write_outputs(target: &Path, output: &SlamOutput, mission: &Mission) -> Result<()> {
+    let folder = OutputFolder::prepare(target, FOLDER_FILES)?;
+    write_output_files(folder.path(), output, mission)?;
+    folder.commit()
+}
+
+/// Writes every output of `output` into the existing folder `dir` (the
+/// fresh folder of an [`OutputFolder`]), each file atomically, in the order
+/// of the module doc, `report.json` last.
+pub fn write_output_files(dir: &Path, output: &SlamOutput, mission: &Mission) -> Result<()> {
     let start = Instant::now();
-    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let loops: Vec<LoopRow> = output.loops.iter().map(LoopRow::from_record).collect();
     let world_from_gt = world_from_ground_truth(output);
     // `mission.mcap`, the largest, is encoded beside the other files (on

@@ -185,6 +185,7 @@ fn run(
     warnings.extend(odometry_scale.as_ref().and_then(odometry_scale::warning));
     let mut loops = std::mem::take(&mut closer.records);
     let mut report = Report {
+        run: None,
         mission: mission.name.clone(),
         echofield_version: env!("CARGO_PKG_VERSION").to_string(),
         rotations: rotations.len(),

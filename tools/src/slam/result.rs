@@ -400,9 +400,65 @@ pub struct DeadReckoningReport {
     pub odometry_scale: Option<OdometryScale>,
 }
 
+/// Which run wrote an output folder: `report.json` → `run`. With the wall
+/// times (`time_s`, `timings`) it is the only part of `report.json` that
+/// differs between two runs of the same input and configuration.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
+pub struct RunInfo {
+    /// Unique on one machine: the start time in nanoseconds since the Unix
+    /// epoch and the process id, both in hexadecimal (`{ns}-{pid}`).
+    pub id: String,
+    /// The start of the command, UTC, RFC 3339 with microseconds.
+    pub start_time_utc: String,
+    /// The subcommand (`run`, `demo`).
+    pub command: String,
+    /// The input paths (the mission, and keyframes when given), absolute.
+    pub inputs: Vec<String>,
+    /// The `--config` file, absolute; `None` for the defaults.
+    pub config: Option<String>,
+    /// The output folder, absolute.
+    pub output: String,
+    pub echofield_version: String,
+}
+
+impl RunInfo {
+    /// The run starting now. Paths are made absolute without touching the
+    /// file system (as given when that fails).
+    pub fn start(
+        command: &str,
+        inputs: &[&std::path::Path],
+        config: Option<&std::path::Path>,
+        output: &std::path::Path,
+    ) -> Self {
+        let now = std::time::SystemTime::now();
+        let since_epoch = now
+            .duration_since(std::time::UNIX_EPOCH)
+            .unwrap_or_default();
+        let absolute = |p: &std::path::Path| {
+            std::path::absolute(p)
+                .unwrap_or_else(|_| p.to_path_buf())
+                .display()
+                .to_string()
+        };
+        Self {
+            id: format!("{:x}-{:x}", since_epoch.as_nanos(), std::process::id()),
+            start_time_utc: humantime::format_rfc3339_micros(now).to_string(),
+            command: command.to_string(),
+            inputs: inputs.iter().map(|p| absolute(p)).collect(),
+            config: config.map(absolute),
+            output: absolute(output),
+            echofield_version: env!("CARGO_PKG_VERSION").to_string(),
+        }
+    }
+}
+
 /// The content of `report.json`.
 #[derive(Clone, Debug, Serialize)]
 pub struct Report {
+    /// The run that wrote the folder, set by the command (`echofield run`,
+    /// `demo`); `None` for outputs written through the library alone.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub run: Option<RunInfo>,
     pub mission: String,
     pub echofield_version: String,
     /// Rotations assembled from the beams.

@@ -1,8 +1,9 @@
 //! The built-in demo (`echofield demo`): simulate a mission, keep it in the
 //! output folder, run the whole pipeline on it and write every output.
 
-use super::write_outputs;
-use crate::slam::{NoProgress, ProgressSink, SlamConfig, SlamOutput, run_mission};
+use super::{FOLDER_FILES, write_output_files};
+use crate::output::folder::OutputFolder;
+use crate::slam::{NoProgress, ProgressSink, RunInfo, SlamConfig, SlamOutput, run_mission};
 use anyhow::{Context, Result};
 use echofield_datasets::mcap::write_mission;
 use echofield_datasets::sim::{Scenario, simulate_mission};
@@ -84,23 +85,31 @@ impl DemoSummary {
 }
 
 /// Simulates `scenario` with `seed`, writes it to `dir/simulated_mission.mcap`,
-/// runs the pipeline with `config` and writes the outputs into `dir`.
+/// runs the pipeline with `config` (read from `config_path`, for the
+/// report's `run` block) and writes the outputs into `dir`. The folder is
+/// checked before the simulation and written whole (`OutputFolder`): on an
+/// error `dir` keeps its previous content.
 pub fn run_demo(
     dir: &Path,
     scenario: &Scenario,
     seed: u64,
     config: &SlamConfig,
+    config_path: Option<&Path>,
     progress: &dyn ProgressSink,
 ) -> Result<DemoSummary> {
-    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let mission_path = dir.join(SIMULATED_MISSION);
+    let run = RunInfo::start("demo", &[&mission_path], config_path, dir);
+    let folder = OutputFolder::prepare(dir, FOLDER_FILES)?;
     let t = Instant::now();
     let mission = simulate(scenario, seed)?;
     let simulation_s = t.elapsed().as_secs_f64();
-    let mission_path = dir.join(SIMULATED_MISSION);
-    write_mission(&mission_path, &mission)?;
-    let output = run_mission(&mission, config, progress).context("SLAM pipeline")?;
+    write_mission(&folder.path().join(SIMULATED_MISSION), &mission)
+        .with_context(|| format!("cannot write {}", mission_path.display()))?;
+    let mut output = run_mission(&mission, config, progress).context("SLAM pipeline")?;
+    output.report.run = Some(run);
     let t = Instant::now();
-    write_outputs(dir, &output, &mission)?;
+    write_output_files(folder.path(), &output, &mission)?;
+    folder.commit()?;
     Ok(DemoSummary {
         dir: dir.to_path_buf(),
         mission_path,
