@@ -66,8 +66,8 @@ pub use error::SlamError;
 pub use loops::LoopConfig;
 pub use pipeline::run_mission;
 pub use result::{
-    IntensityReport, LoopRecord, NodeRecord, RecallBin, RecallBudget, RejectReason, Report, RunInfo,
-    SequentialRecord, SlamOutput, StageTimings,
+    IntensityReport, LoopRecord, NodeRecord, RecallBin, RecallBudget, RejectReason, Report,
+    RunInfo, SequentialRecord, SlamOutput, StageTimings,
 };
 
 use anyhow::{Context, Result, bail};

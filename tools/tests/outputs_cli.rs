@@ -143,16 +143,20 @@ fn fresh_folder(out: &Path, pid: u32) -> Option<PathBuf> {
         .map(|e| e.path())
 }
 
-fn reached(moment: Moment, out: &Path, pid: u32, start: Instant, previous: &Option<String>) -> bool {
+fn reached(
+    moment: Moment,
+    out: &Path,
+    pid: u32,
+    start: Instant,
+    previous: &Option<String>,
+) -> bool {
     match moment {
         Moment::After(d) => start.elapsed() >= d,
         Moment::FreshFolder => fresh_folder(out, pid).is_some(),
         Moment::FreshEntry(suffix) => fresh_folder(out, pid)
             .and_then(|f| std::fs::read_dir(f).ok())
             .is_some_and(|mut entries| {
-                entries.any(|e| {
-                    e.is_ok_and(|e| e.file_name().to_string_lossy().ends_with(suffix))
-                })
+                entries.any(|e| e.is_ok_and(|e| e.file_name().to_string_lossy().ends_with(suffix)))
             }),
         Moment::Swapped => {
             let id = std::fs::read(out.join("report.json"))
@@ -183,7 +187,10 @@ fn kill_at(mission: &Path, out: &Path, moment: Moment) -> bool {
             child.wait().unwrap();
             return false;
         }
-        assert!(start.elapsed() < Duration::from_secs(300), "{moment:?} never came");
+        assert!(
+            start.elapsed() < Duration::from_secs(300),
+            "{moment:?} never came"
+        );
         std::thread::sleep(Duration::from_micros(500));
     }
 }
@@ -236,7 +243,11 @@ fn a_run_killed_at_any_moment_leaves_the_previous_or_the_new_output_whole() {
         println!(
             "killed at {moment:?}: target {state}, {} temporary entries left{}",
             stale.len(),
-            if finished { " (the run had finished)" } else { "" }
+            if finished {
+                " (the run had finished)"
+            } else {
+                ""
+            }
         );
         left_temporaries += stale.len();
 
@@ -382,7 +393,11 @@ fn a_full_and_a_read_only_file_system_keep_the_previous_output() {
     let message = stderr(&full);
     assert!(message.contains("No space left on device"), "{message}");
     assert!(snapshot(&out) == previous);
-    assert!(temporaries(&disk.0).is_empty(), "{:?}", temporaries(&disk.0));
+    assert!(
+        temporaries(&disk.0).is_empty(),
+        "{:?}",
+        temporaries(&disk.0)
+    );
 
     disk.read_only();
     let missing = dir.path().join("missing.mcap");
@@ -448,22 +463,42 @@ fn impossible_outputs_fail_at_once_naming_the_path() {
     let long = dir.path().join("x".repeat(300));
     let cases: Vec<(Vec<std::ffi::OsString>, PathBuf, &str)> = vec![
         (
-            vec!["run".into(), missing.clone().into(), "--output".into(), file.join("out").into()],
+            vec![
+                "run".into(),
+                missing.clone().into(),
+                "--output".into(),
+                file.join("out").into(),
+            ],
             file.clone(),
             "cannot create the folder",
         ),
         (
-            vec!["run".into(), missing.clone().into(), "--output".into(), file.clone().into()],
+            vec![
+                "run".into(),
+                missing.clone().into(),
+                "--output".into(),
+                file.clone().into(),
+            ],
             file.clone(),
             "exists and is not a folder",
         ),
         (
-            vec!["run".into(), missing.clone().into(), "--output".into(), user.clone().into()],
+            vec![
+                "run".into(),
+                missing.clone().into(),
+                "--output".into(),
+                user.clone().into(),
+            ],
             user.clone(),
             "notes.txt",
         ),
         (
-            vec!["run".into(), missing.clone().into(), "--output".into(), long.clone().into()],
+            vec![
+                "run".into(),
+                missing.clone().into(),
+                "--output".into(),
+                long.clone().into(),
+            ],
             long.clone(),
             "File name too long",
         ),
@@ -563,12 +598,18 @@ fn dead_pid() -> u32 {
 fn temporary_files_of_killed_runs_beside_single_file_outputs_are_removed() {
     let dir = tempfile::tempdir().unwrap();
     let dead = dead_pid();
-    let stale = dir.path().join(format!(".echofield-{dead}-Ab12Cd.mcap.tmp"));
+    let stale = dir
+        .path()
+        .join(format!(".echofield-{dead}-Ab12Cd.mcap.tmp"));
     std::fs::write(&stale, b"half a file").unwrap();
     let mission = simulated_tank(dir.path());
     assert!(mission.is_file() && !stale.exists());
     // Nothing else of echofield's is left beside it.
-    assert!(temporaries(dir.path()).is_empty(), "{:?}", temporaries(dir.path()));
+    assert!(
+        temporaries(dir.path()).is_empty(),
+        "{:?}",
+        temporaries(dir.path())
+    );
 }
 
 #[test]
@@ -592,13 +633,19 @@ fn report_json_names_the_run_and_differs_only_there_and_in_wall_times() {
         })
         .collect();
     let after = SystemTime::now();
-    let (a, b) = (report(&outputs[0]["report.json"]), report(&outputs[1]["report.json"]));
+    let (a, b) = (
+        report(&outputs[0]["report.json"]),
+        report(&outputs[1]["report.json"]),
+    );
     let run = &a["run"];
     let start = humantime::parse_rfc3339(run["start_time_utc"].as_str().unwrap()).unwrap();
     assert!(before <= start && start <= after, "{run:#}");
     assert!(run["start_time_utc"].as_str().unwrap().ends_with('Z'));
     assert_eq!(run["command"], "run");
-    assert_eq!(run["inputs"], serde_json::json!([mission.display().to_string()]));
+    assert_eq!(
+        run["inputs"],
+        serde_json::json!([mission.display().to_string()])
+    );
     assert_eq!(run["config"], config.display().to_string());
     assert_eq!(run["output"], dir.path().join("a").display().to_string());
     assert_eq!(run["echofield_version"], env!("CARGO_PKG_VERSION"));

@@ -98,7 +98,11 @@ fn parse_triple(text: &str) -> Result<[f64; 3], String> {
 }
 
 pub fn run(args: Args) -> Result<()> {
-    super::prepare_output_files([Some(&args.json), args.surface.as_ref(), args.overlay.as_ref()])?;
+    super::prepare_output_files([
+        Some(&args.json),
+        args.surface.as_ref(),
+        args.overlay.as_ref(),
+    ])?;
     let config = match &args.config {
         Some(path) => MatchingConfig::from_toml_file(path)?,
         None => MatchingConfig::default(),

@@ -40,8 +40,8 @@ and the remedy), unless --allow-suspect is given; 1 for any error.
 
 OUTPUT is checked before any work and written whole: the outputs go into a
 fresh folder beside it that replaces it at the end, so OUTPUT is always the
-previous complete output or the new one. Only an empty folder or an earlier
-echofield output is replaced; report.json → run names the run that wrote it.
+previous complete output or the new one. Only an empty folder or an output
+of an earlier run is replaced; report.json → run names the run that wrote it.
 
 The config sections are [mounting], [dead_reckoning], [rotation], [segmentation],
 [image], [matcher], [sequential], [loops], [backend] and [evaluation]; see

@@ -67,9 +67,10 @@ impl OutputFolder {
         };
         stale::clean(&parent);
         check_replaceable(&target, &folder.known)?;
-        folder.fresh = Some(create_fresh(&parent, &format!("new-{name}")).with_context(|| {
-            format!("cannot write the output folder {}", target.display())
-        })?);
+        folder.fresh = Some(
+            create_fresh(&parent, &format!("new-{name}"))
+                .with_context(|| format!("cannot write the output folder {}", target.display()))?,
+        );
         Ok(folder)
     }
 
@@ -87,7 +88,13 @@ impl OutputFolder {
     /// On an error the target is the previous output; when the target has
     /// become something echofield may not replace, the new outputs are
     /// kept beside it and the error says where.
-    pub fn commit(mut self) -> Result<()> {
+    pub fn commit(self) -> Result<()> {
+        self.commit_with(true)
+    }
+
+    /// [`commit`](Self::commit), with the atomic exchange only when
+    /// `try_exchange` (the tests exercise the two-rename path with it off).
+    fn commit_with(mut self, try_exchange: bool) -> Result<()> {
         let Some(fresh) = self.fresh.clone() else {
             return Ok(());
         };
@@ -112,7 +119,7 @@ impl OutputFolder {
             return Ok(());
         }
         // `previous`: where the previous output ends up.
-        let previous = if exchange(&fresh, &self.target)? {
+        let previous = if try_exchange && exchange(&fresh, &self.target)? {
             fresh.clone()
         } else {
             let aside = fresh_name(&parent, &format!("old-{name}"));
@@ -408,13 +415,33 @@ mod tests {
         assert!(!target.exists(), "nothing appears before the commit");
         write_output(&first, "first");
         first.commit().unwrap();
-        assert_eq!(std::fs::read_to_string(target.join("a.txt")).unwrap(), "first");
+        assert_eq!(
+            std::fs::read_to_string(target.join("a.txt")).unwrap(),
+            "first"
+        );
         let second = OutputFolder::prepare(&target, KNOWN).unwrap();
         std::fs::write(second.path().join("report.json"), REPORT).unwrap();
         second.commit().unwrap();
         // `a.txt` of the first output is gone: no mix.
         assert_eq!(entries(&target), ["report.json"]);
-        assert_eq!(entries(&target.parent().unwrap()), ["out"]);
+        assert_eq!(entries(target.parent().unwrap()), ["out"]);
+    }
+
+    #[test]
+    fn the_swap_by_two_renames_gives_the_same_result() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("out");
+        let first = OutputFolder::prepare(&target, KNOWN).unwrap();
+        write_output(&first, "first");
+        first.commit_with(false).unwrap();
+        let second = OutputFolder::prepare(&target, KNOWN).unwrap();
+        write_output(&second, "second");
+        second.commit_with(false).unwrap();
+        assert_eq!(
+            std::fs::read_to_string(target.join("a.txt")).unwrap(),
+            "second"
+        );
+        assert_eq!(entries(dir.path()), ["out"]);
     }
 
     #[test]
@@ -427,7 +454,10 @@ mod tests {
         let second = OutputFolder::prepare(&target, KNOWN).unwrap();
         write_output(&second, "second");
         drop(second);
-        assert_eq!(std::fs::read_to_string(target.join("a.txt")).unwrap(), "first");
+        assert_eq!(
+            std::fs::read_to_string(target.join("a.txt")).unwrap(),
+            "first"
+        );
         assert_eq!(entries(dir.path()), ["out"]);
         // Parents that prepare created go as well.
         let nested = dir.path().join("x/y/out");
@@ -456,7 +486,10 @@ mod tests {
         std::fs::remove_file(target.join("notes.txt")).unwrap();
         std::fs::write(target.join("report.json"), "{}").unwrap();
         assert!(OutputFolder::prepare(&target, KNOWN).is_err());
-        assert_eq!(std::fs::read_to_string(target.join("report.json")).unwrap(), "{}");
+        assert_eq!(
+            std::fs::read_to_string(target.join("report.json")).unwrap(),
+            "{}"
+        );
         // A file where the folder should be.
         let file = dir.path().join("file");
         std::fs::write(&file, "x").unwrap();
@@ -480,7 +513,10 @@ mod tests {
         std::fs::write(target.join("notes.txt"), "mine").unwrap();
         let err = format!("{:#}", folder.commit().unwrap_err());
         assert!(err.contains("out.new"), "{err}");
-        assert_eq!(std::fs::read_to_string(target.join("notes.txt")).unwrap(), "mine");
+        assert_eq!(
+            std::fs::read_to_string(target.join("notes.txt")).unwrap(),
+            "mine"
+        );
         assert_eq!(
             std::fs::read_to_string(dir.path().join("out.new/a.txt")).unwrap(),
             "new"
@@ -499,8 +535,16 @@ mod tests {
             let folder = OutputFolder::prepare(&link, KNOWN).unwrap();
             write_output(&folder, "via link");
             folder.commit().unwrap();
-            assert!(std::fs::symlink_metadata(&link).unwrap().file_type().is_symlink());
-            assert_eq!(std::fs::read_to_string(real.join("a.txt")).unwrap(), "via link");
+            assert!(
+                std::fs::symlink_metadata(&link)
+                    .unwrap()
+                    .file_type()
+                    .is_symlink()
+            );
+            assert_eq!(
+                std::fs::read_to_string(real.join("a.txt")).unwrap(),
+                "via link"
+            );
         }
     }
 

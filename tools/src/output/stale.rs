@@ -132,9 +132,10 @@ pub fn clean(dir: &Path) -> Vec<Cleaned> {
     let mut done = Vec::new();
     for name in names {
         let path = dir.join(&name);
-        let pid = parse(&name)
-            .and_then(|t| t.pid)
-            .map_or_else(|| "an earlier version".to_string(), |p| format!("process {p}"));
+        let pid = parse(&name).and_then(|t| t.pid).map_or_else(
+            || "an earlier version".to_string(),
+            |p| format!("process {p}"),
+        );
         let kind = parse(&name).map(|t| t.kind.to_string()).unwrap_or_default();
         if let Some(target) = kind.strip_prefix("old-") {
             let target = dir.join(target);
