@@ -66,13 +66,7 @@ pub fn prepare_output_file(path: &Path) -> Result<()> {
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),
     };
-    std::fs::create_dir_all(dir).with_context(|| {
-        format!(
-            "cannot create the folder {} for the output {}",
-            dir.display(),
-            path.display()
-        )
-    })?;
+    folder::create_parents(dir, path)?;
     stale::clean(dir);
     let prefix = stale::own_prefix();
     tempfile::Builder::new()

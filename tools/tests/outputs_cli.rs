@@ -470,7 +470,7 @@ fn impossible_outputs_fail_at_once_naming_the_path() {
                 file.join("out").into(),
             ],
             file.clone(),
-            "cannot create the folder",
+            "is a file, not a folder",
         ),
         (
             vec![
@@ -505,7 +505,7 @@ fn impossible_outputs_fail_at_once_naming_the_path() {
         (
             vec!["demo".into(), "--output".into(), file.join("demo").into()],
             file.clone(),
-            "cannot create the folder",
+            "is a file, not a folder",
         ),
         (
             vec![
@@ -515,7 +515,7 @@ fn impossible_outputs_fail_at_once_naming_the_path() {
                 file.join("x.g2o").into(),
             ],
             file.join("x.g2o"),
-            "cannot create the folder",
+            "is a file, not a folder",
         ),
         (
             vec![
@@ -537,7 +537,7 @@ fn impossible_outputs_fail_at_once_naming_the_path() {
                 file.join("b.mcap").into(),
             ],
             file.join("b.mcap"),
-            "cannot create the folder",
+            "is a file, not a folder",
         ),
         (
             vec![
@@ -547,7 +547,7 @@ fn impossible_outputs_fail_at_once_naming_the_path() {
                 file.join("cal.toml").into(),
             ],
             file.join("cal.toml"),
-            "cannot create the folder",
+            "is a file, not a folder",
         ),
         (
             vec![
@@ -560,7 +560,7 @@ fn impossible_outputs_fail_at_once_naming_the_path() {
                 file.join("ate.json").into(),
             ],
             file.join("ate.json"),
-            "cannot create the folder",
+            "is a file, not a folder",
         ),
     ];
     for (args, path, words) in cases {

@@ -52,13 +52,7 @@ impl OutputFolder {
     pub fn prepare(target: &Path, known: &[&str]) -> Result<Self> {
         let target = resolve(target)?;
         let (parent, name) = split(&target)?;
-        let created = create_parents(&parent).with_context(|| {
-            format!(
-                "cannot create the folder {} for the output {}",
-                parent.display(),
-                target.display()
-            )
-        })?;
+        let created = create_parents(&parent, &target)?;
         let mut folder = Self {
             target: target.clone(),
             fresh: None,
@@ -207,14 +201,34 @@ fn split(target: &Path) -> Result<(PathBuf, String)> {
     }
 }
 
-/// `create_dir_all(dir)`, returning the folders it created, outermost first.
-fn create_parents(dir: &Path) -> std::io::Result<Vec<PathBuf>> {
+/// `create_dir_all(dir)` for the output `output`, returning the folders it
+/// created, outermost first. The error names the path at fault: an
+/// ancestor that is a file, or `dir`.
+pub(crate) fn create_parents(dir: &Path, output: &Path) -> Result<Vec<PathBuf>> {
     let missing: Vec<PathBuf> = dir
         .ancestors()
         .take_while(|a| std::fs::symlink_metadata(a).is_err())
         .map(Path::to_path_buf)
         .collect();
-    std::fs::create_dir_all(dir)?;
+    if let Some(file) = dir
+        .ancestors()
+        .find(|a| std::fs::symlink_metadata(a).is_ok())
+        .filter(|a| !a.is_dir())
+    {
+        bail!(
+            "cannot create the folder {} for the output {}: {} is a file, not a folder",
+            dir.display(),
+            output.display(),
+            file.display()
+        );
+    }
+    std::fs::create_dir_all(dir).with_context(|| {
+        format!(
+            "cannot create the folder {} for the output {}",
+            dir.display(),
+            output.display()
+        )
+    })?;
     Ok(missing.into_iter().rev().collect())
 }
 
