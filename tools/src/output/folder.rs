@@ -37,7 +37,8 @@ pub struct OutputFolder {
     fresh: Option<PathBuf>,
     /// File names that an earlier output in `target` may hold.
     known: Vec<String>,
-    /// Parent folders `prepare` created, outermost first.
+    /// Parent folders `prepare` created, outermost first; emptied by a
+    /// commit, removed (when empty) by a drop without one.
     created: Vec<PathBuf>,
 }
 
@@ -99,6 +100,7 @@ impl OutputFolder {
             std::fs::rename(&fresh, &aside)
                 .with_context(|| format!("cannot keep the new outputs in {}", aside.display()))?;
             self.fresh = None;
+            self.created.clear();
             return Err(e.context(format!(
                 "the new outputs are in {}, the target changed during the run",
                 aside.display()
@@ -109,6 +111,7 @@ impl OutputFolder {
                 format!("cannot move the new outputs to {}", self.target.display())
             })?;
             self.fresh = None;
+            self.created.clear();
             sync_dir(&parent);
             return Ok(());
         }
@@ -133,6 +136,7 @@ impl OutputFolder {
             aside
         };
         self.fresh = None;
+        self.created.clear();
         sync_dir(&parent);
         // A rename first, so that a kill while deleting leaves an entry that
         // the next run removes rather than moves back.
@@ -153,16 +157,16 @@ impl OutputFolder {
 
 impl Drop for OutputFolder {
     fn drop(&mut self) {
-        if let Some(fresh) = self.fresh.take() {
-            if let Err(e) = std::fs::remove_dir_all(&fresh)
-                && e.kind() != std::io::ErrorKind::NotFound
-            {
-                tracing::warn!("cannot remove {}: {e}", fresh.display());
-            }
-            // Only folders still empty: nothing else was put there since.
-            for dir in self.created.iter().rev() {
-                let _ = std::fs::remove_dir(dir);
-            }
+        if let Some(fresh) = self.fresh.take()
+            && let Err(e) = std::fs::remove_dir_all(&fresh)
+            && e.kind() != std::io::ErrorKind::NotFound
+        {
+            tracing::warn!("cannot remove {}: {e}", fresh.display());
+        }
+        // Not committed: the parent folders that `prepare` created go too,
+        // if still empty (nothing else was put there since).
+        for dir in self.created.iter().rev() {
+            let _ = std::fs::remove_dir(dir);
         }
     }
 }
@@ -473,9 +477,13 @@ mod tests {
             "first"
         );
         assert_eq!(entries(dir.path()), ["out"]);
-        // Parents that prepare created go as well.
+        // Parents that prepare created go as well, also when it fails
+        // after creating them (a name too long for the fresh folder).
         let nested = dir.path().join("x/y/out");
         drop(OutputFolder::prepare(&nested, KNOWN).unwrap());
+        assert_eq!(entries(dir.path()), ["out"]);
+        let long = dir.path().join("x/y").join("z".repeat(250));
+        assert!(OutputFolder::prepare(&long, KNOWN).is_err());
         assert_eq!(entries(dir.path()), ["out"]);
     }
 
