@@ -272,6 +272,35 @@ fn a_run_killed_at_any_moment_leaves_the_previous_or_the_new_output_whole() {
     assert!(left_temporaries >= 1);
 }
 
+/// Two runs into one target at the same time: neither removes the other's
+/// fresh folder (its process is alive), both succeed, and the target is
+/// one complete output.
+#[test]
+fn two_runs_into_one_target_at_once_leave_one_complete_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let mission = simulated_tank(dir.path());
+    let reference_dir = dir.path().join("reference");
+    assert!(run(&mission, &reference_dir).status.success());
+    let reference = snapshot(&reference_dir);
+    let work = dir.path().join("work");
+    let out = work.join("out");
+    let children: Vec<_> = (0..2)
+        .map(|_| {
+            run_command(&mission, &out)
+                .stdout(Stdio::null())
+                .stderr(Stdio::piped())
+                .spawn()
+                .unwrap()
+        })
+        .collect();
+    for child in children {
+        let done = child.wait_with_output().unwrap();
+        assert!(done.status.success(), "{}", stderr(&done));
+    }
+    assert!(is_complete(&snapshot(&out), &reference));
+    assert!(temporaries(&work).is_empty(), "{:?}", temporaries(&work));
+}
+
 /// A command `echofield ARGS` under bash with the file-size limit `kib`
 /// KiB, SIGXFSZ ignored so that a write past the limit fails with EFBIG
 /// (as on a full disk) rather than killing the process.

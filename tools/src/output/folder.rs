@@ -107,13 +107,28 @@ impl OutputFolder {
             )));
         }
         if std::fs::symlink_metadata(&self.target).is_err() {
-            std::fs::rename(&fresh, &self.target).with_context(|| {
-                format!("cannot move the new outputs to {}", self.target.display())
-            })?;
-            self.fresh = None;
-            self.created.clear();
-            sync_dir(&parent);
-            return Ok(());
+            match std::fs::rename(&fresh, &self.target) {
+                Ok(()) => {
+                    self.fresh = None;
+                    self.created.clear();
+                    sync_dir(&parent);
+                    return Ok(());
+                }
+                // Another run put its output there since: replace it below.
+                Err(e)
+                    if matches!(
+                        e.kind(),
+                        std::io::ErrorKind::DirectoryNotEmpty | std::io::ErrorKind::AlreadyExists
+                    ) =>
+                {
+                    check_replaceable(&self.target, &self.known)?;
+                }
+                Err(e) => {
+                    return Err(e).with_context(|| {
+                        format!("cannot move the new outputs to {}", self.target.display())
+                    });
+                }
+            }
         }
         // `previous`: where the previous output ends up.
         let previous = if try_exchange && exchange(&fresh, &self.target)? {
@@ -443,6 +458,20 @@ mod tests {
         // `a.txt` of the first output is gone: no mix.
         assert_eq!(entries(&target), ["report.json"]);
         assert_eq!(entries(target.parent().unwrap()), ["out"]);
+    }
+
+    #[test]
+    fn temporary_files_an_earlier_version_left_in_an_output_go_with_it() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("out");
+        std::fs::create_dir(&target).unwrap();
+        std::fs::write(target.join("report.json"), REPORT).unwrap();
+        std::fs::write(target.join("a.txt"), "old").unwrap();
+        std::fs::write(target.join(".echofield-Xy12Ab.tmp"), "half").unwrap();
+        let folder = OutputFolder::prepare(&target, KNOWN).unwrap();
+        write_output(&folder, "new");
+        folder.commit().unwrap();
+        assert_eq!(entries(&target), ["a.txt", "report.json"]);
     }
 
     #[test]
