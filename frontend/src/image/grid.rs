@@ -382,19 +382,20 @@ impl<T: CellValue> Grid<T> {
     }
 }
 
-/// Above this many binomial passes (`σ` = 2 cells), [`Grid::smooth_gaussian`]
-/// uses three box filters instead, whose cost does not depend on `σ`.
-const MAX_BINOMIAL_PASSES: f64 = 8.0;
+/// Above this many binomial passes (`σ` = 4 cells), [`Grid::smooth_gaussian`]
+/// uses three box filters instead, whose cost does not depend on `σ` (and
+/// which approximate the Gaussian less well for small `σ`).
+const MAX_BINOMIAL_PASSES: f64 = 32.0;
 
 impl Grid {
     /// Smoothing that approximates a Gaussian of standard deviation
-    /// `sigma_cells`. Up to `σ` = 2 cells: `n = round(2σ²)` (at least 1)
+    /// `sigma_cells`. Up to `σ` = 4 cells: `n = round(2σ²)` (at least 1)
     /// separable passes of the binomial filter `[1 2 1] / 4`, whose
     /// variance is 1/2 cell² per pass. Beyond: three separable box filters
     /// of odd widths chosen so that their variances add up to `σ²` (the
     /// sum of three boxes is close to a Gaussian, and each box costs two
     /// additions per cell whatever its width), so the cost is bounded by
-    /// eight binomial passes for any `σ` (issue 35: 2σ² passes made
+    /// 32 binomial passes for any `σ` (issue 35: 2σ² passes made
     /// `image.smoothing_sigma_m = 100` run for minutes). Cells outside the
     /// grid count as 0. A NaN or non-positive `σ` leaves the grid as is.
     pub fn smooth_gaussian(&mut self, sigma_cells: f64) {
@@ -726,8 +727,8 @@ mod tests {
 
     #[test]
     fn wide_smoothing_is_three_boxes_of_the_gaussians_variance() {
-        for sigma in [2.1_f64, 4.0, 7.3] {
-            let n = 121;
+        for sigma in [4.1_f64, 7.3, 15.0] {
+            let n = 201;
             let mut g = Grid::zeros(0.0, 0.0, 1.0, n, n);
             let c = (n / 2) as i64;
             g.values_mut()[(c as usize) * n + c as usize] = 1.0;
@@ -747,11 +748,12 @@ mod tests {
                 (var - sigma * sigma).abs() < 0.08 * sigma * sigma,
                 "σ {sigma}: variance {var}"
             );
-            // Close to the Gaussian's peak 1 / (2πσ²).
+            // Near the Gaussian's peak 1 / (2πσ²): three boxes have a
+            // flatter top, about 6% lower per axis.
             let peak = 1.0 / (2.0 * std::f64::consts::PI * sigma * sigma);
             let got = f64::from(g.cell(c, c));
             assert!(
-                (got - peak).abs() < 0.15 * peak,
+                (got - peak).abs() < 0.2 * peak,
                 "σ {sigma}: {got} vs {peak}"
             );
         }

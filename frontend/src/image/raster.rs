@@ -183,7 +183,7 @@ fn covering_frame(lines: &[BeamLine], cell_m: f64) -> Result<Frame, FrontendErro
             .map(|l| l.origin_x_m.hypot(l.origin_y_m))
             .fold(0.0, f64::max);
         let reach_m = lines.iter().map(BeamLine::far_range_m).fold(0.0, f64::max);
-        if !(spread_m <= reach_m) {
+        if spread_m > reach_m {
             return Err(FrontendError::input(
                 "beams of the rotation",
                 "pose",

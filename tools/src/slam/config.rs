@@ -580,7 +580,7 @@ fn robust_parameter(field: &str, solver: &SolverConfig) -> String {
     let Some(kind) = field.strip_prefix("backend.solver.robust.") else {
         return field.to_string();
     };
-    let Ok(toml::Value::Table(robust)) = toml::Value::try_from(&solver.robust) else {
+    let Ok(toml::Value::Table(robust)) = toml::Value::try_from(solver.robust) else {
         return field.to_string();
     };
     let Some(toml::Value::Table(kernel)) = robust.get(kind) else {
