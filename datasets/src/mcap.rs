@@ -29,8 +29,9 @@
 //! # Reading rules
 //!
 //! - Each stream is stable-sorted by `stamp_s`: messages that arrive out of
-//!   order are accepted and reordered; messages with exactly equal stamps are
-//!   all kept, in file order.
+//!   order are accepted and reordered, with a warning in `Mission::warnings`
+//!   that counts them per stream and names the first; messages with exactly
+//!   equal stamps are all kept, in file order.
 //! - NaN or infinite values, negative stamps, non-positive bin sizes, empty
 //!   beams, a corrupt or truncated container, and an unknown schema on an
 //!   echofield topic are errors that name the file, the message (index in file

@@ -155,6 +155,14 @@ pub fn read_stpere_dir(dir: &Path) -> Result<StPereLogs, DatasetError> {
             what: "attitude samples".into(),
         });
     }
+    // A mission without DVL would convert silently into one that no run
+    // can use (issue 35).
+    if dvl.samples.is_empty() {
+        return Err(DatasetError::Missing {
+            path: files.dvl.clone(),
+            what: "DVL samples (the log has no data line)".into(),
+        });
+    }
     let sonar_setup = match &files.setup {
         Some(path) => Some(sonar::parse_setup(&TextLog::read(path)?)?),
         None => None,
@@ -200,6 +208,7 @@ pub fn read_stpere_dir(dir: &Path) -> Result<StPereLogs, DatasetError> {
         dvl: dvl.samples,
         attitude: mti.samples,
         ground_truth,
+        warnings: Default::default(),
     };
     Ok(StPereLogs {
         mission,

@@ -93,8 +93,10 @@ pub mod synthetic;
 pub use navigation::{DvlGap, HeadingBias, Navigation, NavigationStep};
 
 use crate::error::FrontendError;
+use crate::screening;
 use crate::sensors::Mission;
 use serde::{Deserialize, Serialize};
+use std::f64::consts::{PI, TAU};
 
 /// Noise parameters and options of the dead-reckoning EKF.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -262,11 +264,40 @@ impl DeadReckoningConfig {
                 ));
             }
         }
-        if !self.heading_offset_rad.is_finite() {
+        if !(self.heading_offset_rad.is_finite() && self.heading_offset_rad.abs() <= TAU) {
             return Err(FrontendError::config(
                 "heading_offset_rad",
-                "must be finite",
+                format!(
+                    "must be finite and within ±2π, got {}",
+                    self.heading_offset_rad
+                ),
             ));
+        }
+        // Noises beyond what the quantity can be: the covariances they
+        // make overflow the filter's arithmetic (1e9 m/s turned a tank
+        // mission into beams spread over 1e12 m; 1e9 rad made the
+        // odometry's information matrix indefinite).
+        let upper = [
+            (
+                "dvl_velocity_noise_mps",
+                self.dvl_velocity_noise_mps,
+                screening::MAX_DVL_SPEED_MPS,
+            ),
+            ("heading_noise_rad", self.heading_noise_rad, PI),
+            ("heading_bias_sigma_rad", self.heading_bias_sigma_rad, PI),
+            (
+                "yaw_rate_noise_radps",
+                self.yaw_rate_noise_radps,
+                screening::MAX_YAW_RATE_RADPS,
+            ),
+        ];
+        for (field, value, max) in upper {
+            if value > max {
+                return Err(FrontendError::config(
+                    field,
+                    format!("must be at most {max}, got {value}"),
+                ));
+            }
         }
         Ok(())
     }

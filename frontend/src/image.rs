@@ -232,6 +232,9 @@ impl PoseFitRaster {
     }
 }
 
+/// The largest `ImageConfig::smoothing_sigma_m`, metres.
+const MAX_SMOOTHING_SIGMA_M: f64 = 100.0;
+
 /// Cells across the longest beam range when the cell size is derived.
 const AUTO_CELLS_PER_RANGE: f64 = 250.0;
 /// Limits of a derived cell size, metres.
@@ -294,10 +297,17 @@ impl ImageConfig {
             ));
         }
         positive("intensity_exponent", self.intensity_exponent)?;
-        if !(self.smoothing_sigma_m.is_finite() && self.smoothing_sigma_m >= 0.0) {
+        // The smoothing's cost does not depend on σ (`Grid::smooth_gaussian`);
+        // beyond the reach of any sonar it only blanks the image.
+        if !(self.smoothing_sigma_m.is_finite()
+            && (0.0..=MAX_SMOOTHING_SIGMA_M).contains(&self.smoothing_sigma_m))
+        {
             return Err(FrontendError::config(
                 "smoothing_sigma_m",
-                format!("must be finite and >= 0, got {}", self.smoothing_sigma_m),
+                format!(
+                    "must lie in [0, {MAX_SMOOTHING_SIGMA_M}] m, got {}",
+                    self.smoothing_sigma_m
+                ),
             ));
         }
         self.off_axis.validate()?;

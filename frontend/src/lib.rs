@@ -16,10 +16,12 @@ pub mod mounting;
 pub mod off_axis;
 pub mod rotation;
 pub mod scan;
+pub mod screening;
 pub mod segmentation;
 pub mod sensors;
 pub mod sharpness;
 pub mod sweep_lag;
+pub mod warnings;
 
 pub use error::FrontendError;
 

@@ -331,6 +331,9 @@ fn check_beams(beams: &[SonarBeam]) -> Result<(), FrontendError> {
         if !beam.angle_rad.is_finite() {
             return Err(FrontendError::input(record(), "angle_rad", "not finite"));
         }
+        if let Some(why) = crate::screening::implausible_angle(beam.angle_rad) {
+            return Err(FrontendError::input(record(), "angle_rad", why));
+        }
         if !(beam.bin_size_m.is_finite() && beam.bin_size_m > 0.0) {
             return Err(FrontendError::input(
                 record(),

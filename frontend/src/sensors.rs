@@ -7,6 +7,7 @@
 //! metric frame (x east, y north unless stated by the reader). All stamps are
 //! absolute seconds (Unix time for real logs); angles are in radians.
 
+use crate::warnings::Warnings;
 use echofield_graph::Se2;
 use nalgebra::{Matrix3, Vector3};
 use serde::{Deserialize, Serialize};
@@ -232,4 +233,8 @@ pub struct Mission {
     pub attitude: Vec<Attitude>,
     /// Empty when the mission has no ground truth.
     pub ground_truth: Vec<GroundTruthPose>,
+    /// What the reader repaired in the log (records re-sorted, a mounting
+    /// assumed, implausible samples dropped), for the run's report.
+    #[serde(default, skip_serializing_if = "Warnings::is_empty")]
+    pub warnings: Warnings,
 }

@@ -49,6 +49,7 @@ pub mod error_budget;
 pub mod estimate;
 pub mod evaluation;
 pub mod health;
+mod input_checks;
 pub mod loops;
 pub mod nodes;
 pub mod odometry_scale;

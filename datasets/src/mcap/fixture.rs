@@ -97,5 +97,6 @@ pub fn random_mission(n_beams: usize, n_bins: usize, seed: u64) -> Mission {
         dvl,
         attitude,
         ground_truth,
+        warnings: Default::default(),
     }
 }

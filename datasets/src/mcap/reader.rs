@@ -11,6 +11,7 @@ use crate::DatasetError;
 use echofield_frontend::sensors::{
     Attitude, DvlVelocity, GroundTruthPose, Mission, SensorMounting, SonarBeam,
 };
+use echofield_frontend::warnings::{Warning, WarningKind};
 use mcap::records::Record;
 use std::collections::HashMap;
 use std::fs::File;
@@ -271,7 +272,18 @@ impl State {
                     .unwrap_or_default();
             }
         }
-        // Stable sorts: equal stamps keep their file order.
+        // Stable sorts: equal stamps keep their file order. Records that
+        // went backwards are counted first (a warning for the report).
+        let streams = [
+            resorted(STREAM_NAMES[0], mission.beams.iter().map(|b| b.stamp_s)),
+            resorted(STREAM_NAMES[1], mission.dvl.iter().map(|d| d.stamp_s)),
+            resorted(STREAM_NAMES[2], mission.attitude.iter().map(|a| a.stamp_s)),
+            resorted(
+                STREAM_NAMES[3],
+                mission.ground_truth.iter().map(|g| g.stamp_s),
+            ),
+        ];
+        mission.warnings.extend(streams.into_iter().flatten());
         mission
             .beams
             .sort_by(|a, b| a.stamp_s.total_cmp(&b.stamp_s));
@@ -284,6 +296,35 @@ impl State {
             .sort_by(|a, b| a.stamp_s.total_cmp(&b.stamp_s));
         Ok(mission)
     }
+}
+
+/// A warning when some of `stamps` (one stream's records in file order)
+/// are earlier than a record before them: how many, and the first of them
+/// (its index among the stream's records in the file, and by how much it
+/// went back).
+fn resorted(stream: &str, stamps: impl Iterator<Item = f64>) -> Option<Warning> {
+    let mut latest = f64::NEG_INFINITY;
+    let (mut count, mut first) = (0usize, None);
+    for (i, stamp) in stamps.enumerate() {
+        if stamp < latest {
+            count += 1;
+            first.get_or_insert((i, latest - stamp));
+        }
+        latest = latest.max(stamp);
+    }
+    let (i, back_s) = first?;
+    Some(
+        Warning::new(
+            WarningKind::StampsResorted,
+            count,
+            format!(
+                "{count} {stream} records have stamps earlier than a record before them in the \
+                 file (the first, record {i} of the stream, by {back_s:.3} s) and were re-sorted \
+                 by time: check the logger's clock"
+            ),
+        )
+        .at(format!("{stream} record {i}")),
+    )
 }
 
 /// Which decoder a channel needs, `None` to skip it, or an error for a

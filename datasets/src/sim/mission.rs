@@ -111,6 +111,7 @@ pub fn simulate_mission(scenario: &Scenario, seed: u64) -> Result<Mission, SimEr
         dvl,
         attitude,
         ground_truth: ground_truth_records(scenario),
+        warnings: Default::default(),
     })
 }
 

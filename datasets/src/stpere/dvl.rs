@@ -62,6 +62,18 @@ pub(crate) fn parse_dvl(log: &TextLog) -> Result<DvlLog, DatasetError> {
         let roll_deg = log.float(line, ROLL + shift, "roll")?;
         let flagged = velocity_cmps.iter().any(|v| v.abs() >= DVL_INVALID_CMPS);
         let valid = status == 1 && !flagged;
+        // Beyond the invalid marker a velocity is a corrupt value (issue
+        // 35: 1e20 m/s hung the dead reckoning).
+        if let Some(k) = (0..3).find(|&k| velocity_cmps[k].abs() > DVL_INVALID_CMPS) {
+            return Err(log.error(
+                line.line,
+                &format!("column {} ({})", BOTTOM_VX + shift + k + 1, names[k]),
+                format!(
+                    "{:e} cm/s is beyond the Argonaut's invalid marker {DVL_INVALID_CMPS} cm/s: a corrupt value",
+                    velocity_cmps[k]
+                ),
+            ));
+        }
         let velocity_mps = if valid {
             Vector3::from(velocity_cmps) / 100.0
         } else {

@@ -32,6 +32,9 @@ pub fn compass_to_yaw_rad(heading_deg: f64) -> f64 {
     wrap_angle(FRAC_PI_2 - heading_deg.to_radians())
 }
 
+/// The largest magnitude of a logged heading, degrees.
+const MAX_HEADING_DEG: f64 = 720.0;
+
 pub(crate) struct MtiLog {
     pub samples: Vec<Attitude>,
     pub skipped: Vec<SkippedLine>,
@@ -47,6 +50,15 @@ pub(crate) fn parse_mti(log: &TextLog) -> Result<MtiLog, DatasetError> {
         let roll_deg = log.float(line, 1 + shift, "roll")?;
         let pitch_deg = log.float(line, 2 + shift, "pitch")?;
         let heading_deg = log.float(line, 3 + shift, "yaw")?;
+        // A compass heading beyond two turns is a corrupt value, not a
+        // heading (1e308° once read as a heading silently, issue 35).
+        if heading_deg.abs() > MAX_HEADING_DEG {
+            return Err(log.error(
+                line.line,
+                &format!("column {} (yaw)", 4 + shift),
+                format!("{heading_deg:e} degrees is not a heading (beyond ±{MAX_HEADING_DEG}°)"),
+            ));
+        }
         let rate_z_radps = log.float(line, 6 + shift, "rate z")?;
         // The accelerations are parsed only to reject a corrupt line.
         for (k, name) in ["rate x", "rate y", "acc x", "acc y", "acc z"]

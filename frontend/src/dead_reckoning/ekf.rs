@@ -7,14 +7,15 @@ use super::model::{self, PSI, ProcessNoise, R, U, V, X, Y, pose_block, symmetric
 use super::navigation::{DvlGap, HeadingBias, Navigation, NavigationStep};
 use super::smoother::{self, Prediction};
 use crate::error::FrontendError;
+use crate::screening;
 use crate::sensors::{Attitude, DvlVelocity, Mission, SensorMounting};
 use echofield_graph::Se2;
 use echofield_graph::se2::wrap_angle;
 use nalgebra::{Matrix2, Matrix2x6, Matrix6, RowVector6, Vector2, Vector6};
 
-/// Checks every record the filter will use: finite values, stamps
-/// non-decreasing within each stream, at least one valid DVL sample and one
-/// attitude sample.
+/// Checks every record the filter will use: finite and plausible values
+/// ([`crate::screening`]), stamps non-decreasing within each stream, at
+/// least one valid DVL sample and one attitude sample.
 pub(super) fn check_records(
     mission: &Mission,
     config: &DeadReckoningConfig,
@@ -29,6 +30,9 @@ pub(super) fn check_records(
         }
         if !(s.velocity_mps.x.is_finite() && s.velocity_mps.y.is_finite()) {
             return Err(FrontendError::input(record(), "velocity_mps", "not finite"));
+        }
+        if let Some(why) = screening::implausible_dvl_speed(&s.velocity_mps) {
+            return Err(FrontendError::input(record(), "velocity_mps", why));
         }
         if config.use_dvl_covariance
             && let Some(cov) = &s.covariance
@@ -45,12 +49,20 @@ pub(super) fn check_records(
         if !a.yaw_rad.is_finite() {
             return Err(FrontendError::input(record(), "yaw_rad", "not finite"));
         }
-        if a.yaw_rate_radps.is_some_and(|w| !w.is_finite()) {
-            return Err(FrontendError::input(
-                record(),
-                "yaw_rate_radps",
-                "not finite",
-            ));
+        if let Some(why) = screening::implausible_angle(a.yaw_rad) {
+            return Err(FrontendError::input(record(), "yaw_rad", why));
+        }
+        if let Some(w) = a.yaw_rate_radps {
+            if !w.is_finite() {
+                return Err(FrontendError::input(
+                    record(),
+                    "yaw_rate_radps",
+                    "not finite",
+                ));
+            }
+            if let Some(why) = screening::implausible_yaw_rate(w) {
+                return Err(FrontendError::input(record(), "yaw_rate_radps", why));
+            }
         }
     }
     if !mission.dvl.iter().any(|s| s.valid) {
@@ -315,7 +327,10 @@ impl<'c> Ekf<'c> {
         }
         let current_var = nominal_var * self.dvl_noise_scale;
         let cap = ADAPTATION_CLIP_CHI2 * current_var;
-        let power = (0.5 * (innovation.norm_squared() - predicted.trace())).clamp(0.0, cap);
+        // `max`/`min`, not `clamp`: a NaN cap must not panic.
+        let power = (0.5 * (innovation.norm_squared() - predicted.trace()))
+            .max(0.0)
+            .min(cap);
         let w = 1.0 / n as f64;
         self.dvl_noise_var = if self.dvl_noise_var.is_nan() {
             nominal_var

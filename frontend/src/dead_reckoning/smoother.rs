@@ -95,13 +95,41 @@ fn set_state(step: &mut NavigationStep, state: &Vector6<f64>, cov: &Matrix6<f64>
 
 /// Inverse of a covariance: Cholesky, or the pseudo-inverse when it is
 /// singular (e.g. no position uncertainty yet right after the start).
+/// `None` for a zero or non-finite covariance: the SVD behind the
+/// pseudo-inverse does not converge on infinite entries (it spun forever
+/// on DVL velocities of 1e20 m/s, issue 35).
 fn inverse(p: &Matrix6<f64>) -> Option<Matrix6<f64>> {
+    if !p.iter().all(|v| v.is_finite()) {
+        return None;
+    }
     if let Some(chol) = p.cholesky() {
         return Some(chol.inverse());
     }
     let scale = p.abs().max();
-    if scale.is_nan() || scale <= 0.0 {
+    if scale <= 0.0 {
         return None;
     }
     p.pseudo_inverse(1e-12 * scale).ok()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_covariance_with_infinite_entries_has_no_inverse_and_ends() {
+        // Issue 35: the pseudo-inverse's SVD never converged on this.
+        let mut p = Matrix6::identity();
+        p[(3, 3)] = f64::INFINITY;
+        assert!(inverse(&p).is_none());
+        p[(3, 3)] = f64::NAN;
+        assert!(inverse(&p).is_none());
+        assert!(inverse(&Matrix6::zeros()).is_none());
+        // A singular but finite covariance gets the pseudo-inverse.
+        let mut singular = Matrix6::identity();
+        singular[(0, 0)] = 0.0;
+        let inv = inverse(&singular).unwrap();
+        assert_eq!(inv[(0, 0)], 0.0);
+        assert!((inv[(1, 1)] - 1.0).abs() < 1e-12);
+    }
 }

@@ -203,5 +203,6 @@ pub fn synthetic_mission(path: &SyntheticPath, config: &SyntheticNavConfig, seed
         dvl,
         attitude,
         ground_truth,
+        warnings: Default::default(),
     }
 }

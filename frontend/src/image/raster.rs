@@ -175,6 +175,25 @@ fn covering_frame(lines: &[BeamLine], cell_m: f64) -> Result<Frame, FrontendErro
     let width = ((x1 - ox) / cell_m).ceil() as usize + 2;
     let height = ((y1 - oy) / cell_m).ceil() as usize + 2;
     if width.saturating_mul(height) > MAX_CELLS {
+        // Beams whose origins lie farther apart than their own reach were
+        // placed there by the motion compensation: the navigation is to
+        // blame, not the cell size (issue 35: a DVL at 1e3 m/s).
+        let spread_m = lines
+            .iter()
+            .map(|l| l.origin_x_m.hypot(l.origin_y_m))
+            .fold(0.0, f64::max);
+        let reach_m = lines.iter().map(BeamLine::far_range_m).fold(0.0, f64::max);
+        if spread_m > reach_m {
+            return Err(FrontendError::input(
+                "beams of the rotation",
+                "pose",
+                format!(
+                    "the navigation places beams {spread_m:.3e} m from the rotation's central \
+                     pose, beyond their {reach_m:.1} m reach: the vehicle cannot have moved so \
+                     far within one rotation; check the DVL and heading records of this time"
+                ),
+            ));
+        }
         return Err(FrontendError::config(
             "cell_size_m",
             format!(

@@ -108,7 +108,8 @@ impl SearchWindow {
     }
 
     /// `n_sigma` standard deviations of the prior covariance `(x, y, θ)`
-    /// per axis, each clamped to `[min, max]`.
+    /// per axis, each clamped to `[min, max]` (`max` wins where `min`
+    /// exceeds it; never panics).
     pub fn from_covariance(
         covariance: &Matrix3<f64>,
         n_sigma: f64,
@@ -120,7 +121,7 @@ impl SearchWindow {
             if !variance.is_finite() {
                 return hi; // unknown uncertainty: search as widely as allowed
             }
-            (n_sigma * variance.max(0.0).sqrt()).clamp(lo, hi)
+            (n_sigma * variance.max(0.0).sqrt()).max(lo).min(hi)
         };
         Self {
             x_m: axis(0, min.x_m, max.x_m),

@@ -150,10 +150,14 @@ impl BeamWidthCorrection {
             self.max_bend_rad,
             std::f64::consts::FRAC_PI_2,
         )?;
-        if !(self.backscatter_exponent.is_finite() && self.backscatter_exponent >= 0.0) {
+        // Backscatter laws run from Lambert's 2 to about 10 for smooth
+        // surfaces; far beyond, the shortfall throws returns kilometres out.
+        if !(self.backscatter_exponent.is_finite()
+            && (0.0..=20.0).contains(&self.backscatter_exponent))
+        {
             return Err(FrontendError::config(
                 "beam_width.backscatter_exponent",
-                format!("must be finite and >= 0, got {}", self.backscatter_exponent),
+                format!("must lie in [0, 20], got {}", self.backscatter_exponent),
             ));
         }
         Ok(())

@@ -28,15 +28,38 @@ pub struct Args {
     /// Alignment applied to the estimate before measuring ATE.
     #[arg(long, value_enum, default_value_t = Alignment::Se2)]
     align: Alignment,
-    /// Largest stamp difference for two poses to be associated, seconds.
-    #[arg(long, default_value_t = 0.01)]
+    /// Largest stamp difference for two poses to be associated, seconds
+    /// (finite, >= 0).
+    #[arg(long, default_value_t = 0.01, value_parser = non_negative_seconds)]
     max_time_diff: f64,
-    /// Travelled distances for the RPE, metres, comma separated.
-    #[arg(long, value_delimiter = ',', default_value = "10,50")]
+    /// Travelled distances for the RPE, metres, comma separated (each
+    /// finite and > 0).
+    #[arg(long, value_delimiter = ',', default_value = "10,50", value_parser = positive_metres)]
     rpe_distances: Vec<f64>,
     /// Also write the results as JSON.
     #[arg(long)]
     json: Option<PathBuf>,
+}
+
+/// `--max-time-diff`: a finite number of seconds, at least 0 (NaN
+/// associated nothing and was accepted, issue 35).
+fn non_negative_seconds(text: &str) -> Result<f64, String> {
+    let value: f64 = text.parse().map_err(|e| format!("`{text}`: {e}"))?;
+    if value.is_finite() && value >= 0.0 {
+        Ok(value)
+    } else {
+        Err(format!("`{text}`: must be a finite number of seconds >= 0"))
+    }
+}
+
+/// One of `--rpe-distances`: a finite distance > 0, metres.
+fn positive_metres(text: &str) -> Result<f64, String> {
+    let value: f64 = text.parse().map_err(|e| format!("`{text}`: {e}"))?;
+    if value.is_finite() && value > 0.0 {
+        Ok(value)
+    } else {
+        Err(format!("`{text}`: must be a finite distance > 0 m"))
+    }
 }
 
 #[derive(Serialize)]

@@ -252,18 +252,72 @@ impl Window {
             && covariance[(2, 2)].sqrt() <= self.theta_rad
     }
 
+    /// `(key, value)` per axis, in TOML order.
+    pub fn axes(&self) -> [(&'static str, f64); 3] {
+        [
+            ("x_m", self.x_m),
+            ("y_m", self.y_m),
+            ("theta_rad", self.theta_rad),
+        ]
+    }
+
     /// As the matcher's window type.
     pub fn search(&self) -> SearchWindow {
         SearchWindow::new(self.x_m, self.y_m, self.theta_rad)
     }
 }
 
-/// Checks a window's values (finite, >= 0, angle <= π).
+/// The largest translation half-width or standard deviation of a
+/// [`Window`] in the config, metres. A search window's cost grows with its
+/// area in image cells, and a sonar sees at most a few hundred metres, so
+/// a larger value is a typing error that would only make a run hang.
+pub(crate) const MAX_WINDOW_M: f64 = 1000.0;
+
+/// Checks a window's values, naming the axis: finite, `0 <= x_m, y_m <=`
+/// [`MAX_WINDOW_M`], `0 <= theta_rad <= π`.
 pub(crate) fn check_window(field: &str, window: &Window) -> Result<(), SlamError> {
-    window
-        .search()
-        .validate()
-        .map_err(|e| SlamError::config(field, e.to_string()))
+    check_range(&format!("{field}.x_m"), window.x_m, 0.0, MAX_WINDOW_M)?;
+    check_range(&format!("{field}.y_m"), window.y_m, 0.0, MAX_WINDOW_M)?;
+    check_range(
+        &format!("{field}.theta_rad"),
+        window.theta_rad,
+        0.0,
+        std::f64::consts::PI,
+    )
+}
+
+/// Checks that `window` is positive on every axis (a search over a window
+/// of zero width finds nothing; a standard deviation of zero makes an
+/// information matrix infinite).
+pub(crate) fn check_positive_window(field: &str, window: &Window) -> Result<(), SlamError> {
+    for (axis, value) in window.axes() {
+        if value <= 0.0 {
+            return Err(SlamError::config(
+                format!("{field}.{axis}"),
+                format!("must be > 0, got {value}"),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Checks `lower <= upper` on every axis, naming both keys (`min_window`
+/// against `max_window`: a clamp between them needs the order).
+pub(crate) fn check_window_order(
+    lower_field: &str,
+    lower: &Window,
+    upper_field: &str,
+    upper: &Window,
+) -> Result<(), SlamError> {
+    for ((axis, lo), (_, hi)) in lower.axes().into_iter().zip(upper.axes()) {
+        if lo > hi {
+            return Err(SlamError::config(
+                format!("{lower_field}.{axis}"),
+                format!("{lo} exceeds {upper_field}.{axis} = {hi}; it must not"),
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// Sequential matching: `S_k` against `I_{k-1}` with the dead-reckoning
@@ -334,6 +388,13 @@ impl SequentialConfig {
         check_range("sequential.n_sigma", self.n_sigma, 0.1, 100.0)?;
         check_window("sequential.min_window", &self.min_window)?;
         check_window("sequential.max_window", &self.max_window)?;
+        check_positive_window("sequential.max_window", &self.max_window)?;
+        check_window_order(
+            "sequential.min_window",
+            &self.min_window,
+            "sequential.max_window",
+            &self.max_window,
+        )?;
         check_range(
             "sequential.min_mean_intensity",
             self.min_mean_intensity,
@@ -465,9 +526,30 @@ impl BackendConfig {
                 std::f64::consts::PI,
             )?;
         }
+        for (field, value) in [
+            (
+                "incremental_max_iterations",
+                self.incremental_max_iterations,
+            ),
+            ("solver.max_iterations", self.solver.max_iterations),
+        ] {
+            if value > MAX_ITERATIONS {
+                return Err(SlamError::config(
+                    format!("backend.{field}"),
+                    format!("must be at most {MAX_ITERATIONS}, got {value}"),
+                ));
+            }
+        }
+        if self.solver.threads > MAX_THREADS {
+            return Err(SlamError::config(
+                "backend.solver.threads",
+                format!("must be at most {MAX_THREADS}, got {}", self.solver.threads),
+            ));
+        }
         self.solver.validate().map_err(|e| match &e {
             echofield_backend::ConfigError::OutOfRange { field, .. } => {
-                SlamError::config(format!("backend.solver.{field}"), e.to_string())
+                let field = format!("backend.solver.{field}");
+                SlamError::config(robust_parameter(&field, &self.solver), e.to_string())
             }
             _ => SlamError::config("backend.solver", e.to_string()),
         })
@@ -481,6 +563,33 @@ impl BackendConfig {
             ..self.solver.clone()
         }
     }
+}
+
+/// The most iterations a solve may be given: a solve that has not
+/// converged after that many will not, and a larger cap only hides it.
+const MAX_ITERATIONS: usize = 10_000;
+
+/// The most threads of a solve's factorisation (more only cost memory).
+const MAX_THREADS: usize = 1024;
+
+/// `field` (`backend.solver.robust.loop`) with the kernel parameter that
+/// is not finite and positive appended (`backend.solver.robust.loop.c`),
+/// read from the kernel's TOML form so that every kernel's parameters are
+/// named; `field` itself when it is not a kernel's or none is bad.
+fn robust_parameter(field: &str, solver: &SolverConfig) -> String {
+    let Some(kind) = field.strip_prefix("backend.solver.robust.") else {
+        return field.to_string();
+    };
+    let Ok(toml::Value::Table(robust)) = toml::Value::try_from(solver.robust) else {
+        return field.to_string();
+    };
+    let Some(toml::Value::Table(kernel)) = robust.get(kind) else {
+        return field.to_string();
+    };
+    kernel
+        .iter()
+        .find(|(_, v)| v.as_float().is_some_and(|x| !(x.is_finite() && x > 0.0)))
+        .map_or_else(|| field.to_string(), |(name, _)| format!("{field}.{name}"))
 }
 
 /// Evaluation against ground truth. Ground truth is read only here, after

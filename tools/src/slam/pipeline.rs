@@ -12,12 +12,16 @@ use super::result::{
     ROBUST_WEIGHT_REJECTED, RejectReason, Report, SequentialRecord, SkippedRotation, SlamOutput,
     SolverReport, StageTimings, TimeGap,
 };
-use super::{ProgressSink, SlamError, check_sensors, health, odometry_scale, sequential};
+use super::{
+    ProgressSink, SlamError, check_sensors, health, input_checks, odometry_scale, sequential,
+};
 use echofield_backend::edge_error;
 use echofield_frontend::dead_reckoning::{self, Navigation};
 use echofield_frontend::intensity::{self, IntensityKind};
 use echofield_frontend::rotation::{Rotation, assemble_rotations};
+use echofield_frontend::screening;
 use echofield_frontend::sensors::{AngleDirection, Mission, MountingSource, SensorMounting};
+use echofield_frontend::warnings::{Warning, WarningKind, Warnings};
 use echofield_graph::{EdgeKind, PoseGraph, Se2};
 use std::borrow::Cow;
 use std::collections::BTreeMap;
@@ -53,9 +57,9 @@ fn prepare_scan_only<'m, 'c>(
 /// The warning of a run whose sonar mounting nobody gave: the scans land
 /// wherever the assumed mounting puts them, and a wrong one fails without
 /// any other sign.
-fn mounting_warning(mounting: &SensorMounting) -> Option<String> {
+fn mounting_warning(mounting: &SensorMounting) -> Option<Warning> {
     (mounting.source == MountingSource::Assumed).then(|| {
-        format!(
+        let message = format!(
             "the mission records no verified sensor mounting: the sonar head was assumed at \
              ({:.2} m, {:.2} m), its angle zero at {:.1} deg, counting {}; give [mounting] in \
              --config, or let `echofield calibrate` estimate it",
@@ -66,7 +70,8 @@ fn mounting_warning(mounting: &SensorMounting) -> Option<String> {
                 AngleDirection::CounterClockwise => "counter-clockwise",
                 AngleDirection::Clockwise => "clockwise",
             }
-        )
+        );
+        Warning::new(WarningKind::MountingAssumed, 1, message)
     })
 }
 
@@ -102,6 +107,15 @@ fn run(
         }
         other => SlamError::frontend("mounting", other),
     })?;
+    let mut input_warnings = mission.warnings.clone();
+    let (screened, dropped) =
+        screening::screen(&mission).map_err(|e| SlamError::frontend("sensor records", e))?;
+    input_warnings.extend(dropped.iter().cloned());
+    let screened = match screened {
+        Cow::Borrowed(_) => None,
+        Cow::Owned(m) => Some(m),
+    };
+    let mission = screened.map_or(mission, Cow::Owned);
     let (mission, config, intensity) = prepare_scan_only(mission, config);
     let (mission, config): (&Mission, &SlamConfig) = (&mission, &config);
     check_sensors(mission)?;
@@ -117,6 +131,7 @@ fn run(
     let t = Instant::now();
     let rotations = assemble_rotations(&mission.beams, &config.rotation)
         .map_err(|e| SlamError::frontend("rotation assembly", e))?;
+    input_warnings.extend(input_checks::dropped_rotations(&mission.beams, &rotations));
     timings.scan_image_building_s = t.elapsed().as_secs_f64();
     let mut pass = run_pass(
         mission,
@@ -159,9 +174,11 @@ fn run(
         mut closer,
         graph,
         summary,
-        mut warnings,
+        warnings: pass_warnings,
     } = pass;
+    let mut warnings = input_warnings;
     warnings.extend(mounting_warning(&mission.mounting));
+    warnings.extend(pass_warnings.iter().cloned());
 
     let mut records: Vec<NodeRecord> = nodes
         .iter()
@@ -182,7 +199,12 @@ fn run(
     let time_gaps = time_gaps(&navigation, &nodes, &mut warnings);
     yaw_rate_warning(&navigation, &config.dead_reckoning, &mut warnings);
     let odometry_scale = odometry_scale::odometry_scale(&graph);
-    warnings.extend(odometry_scale.as_ref().and_then(odometry_scale::warning));
+    warnings.extend(
+        odometry_scale
+            .as_ref()
+            .and_then(odometry_scale::warning)
+            .map(|m| Warning::new(WarningKind::OdometryScale, 1, m)),
+    );
     let mut loops = std::mem::take(&mut closer.records);
     let mut report = Report {
         run: None,
@@ -291,7 +313,7 @@ struct Pass<'a> {
     closer: LoopCloser<'a>,
     graph: PoseGraph,
     summary: echofield_backend::SolveSummary,
-    warnings: Vec<String>,
+    warnings: Warnings,
 }
 
 /// Builds the nodes with the beams placed by `compensation`, matches them
@@ -306,7 +328,7 @@ fn run_pass<'a>(
     progress: &dyn ProgressSink,
     timings: &mut StageTimings,
 ) -> Result<Pass<'a>, SlamError> {
-    let mut warnings = Vec::new();
+    let mut warnings = Warnings::new();
     progress.stage("building scans and images");
     let t = Instant::now();
     let (nodes, skipped) = build_nodes(mission, rotations, navigation, compensation, config)?;
@@ -320,6 +342,7 @@ fn run_pass<'a>(
         });
     }
     report_skipped(&skipped, &mut warnings);
+    input_checks::scans_and_images(mission, &nodes, config)?;
 
     progress.stage("sequential matching");
     let t = Instant::now();
@@ -358,8 +381,10 @@ fn run_pass<'a>(
     closer.densify(&nodes, &mut estimate)?;
     closer.finish();
     if let Some(e) = incremental_error {
-        warnings.push(format!(
-            "an incremental solve failed ({e}); the final batch solve was run anyway"
+        warnings.push(Warning::new(
+            WarningKind::Solver,
+            1,
+            format!("an incremental solve failed ({e}); the final batch solve was run anyway"),
         ));
     }
     if closer.inexact_cliques > 0 {
@@ -483,15 +508,19 @@ fn final_solve(
     Ok((graph, summary))
 }
 
-fn report_skipped(skipped: &[SkippedRotation], warnings: &mut Vec<String>) {
+fn report_skipped(skipped: &[SkippedRotation], warnings: &mut Warnings) {
     if let (Some(first), Some(last)) = (skipped.first(), skipped.last()) {
-        warnings.push(format!(
+        let message = format!(
             "{} rotations were skipped (rotations {}-{}): {}",
             skipped.len(),
             first.rotation_index,
             last.rotation_index,
             first.reason
-        ));
+        );
+        warnings.push(
+            Warning::new(WarningKind::RotationsSkipped, skipped.len(), message)
+                .at(format!("rotation {}", first.rotation_index)),
+        );
     }
 }
 
@@ -500,27 +529,24 @@ fn report_skipped(skipped: &[SkippedRotation], warnings: &mut Vec<String>) {
 fn yaw_rate_warning(
     navigation: &Navigation,
     config: &echofield_frontend::dead_reckoning::DeadReckoningConfig,
-    warnings: &mut Vec<String>,
+    warnings: &mut Warnings,
 ) {
     let used = navigation.yaw_rate_noise_radps();
     if let Some(check) = navigation.yaw_rate_check()
         && used > config.yaw_rate_noise_radps
     {
-        warnings.push(format!(
+        let message = format!(
             "the yaw rates disagree with the headings by {:.2}° RMS over {} s windows: dead reckoning used a yaw-rate noise of {used:.3} rad/s instead of the configured {} (dead_reckoning.yaw_rate_check_window_s)",
             check.disagreement_rad.to_degrees(),
             config.yaw_rate_check_window_s,
             config.yaw_rate_noise_radps,
-        ));
+        );
+        warnings.push(Warning::new(WarningKind::YawRateNoise, 1, message));
     }
 }
 
 /// DVL gaps and long intervals between nodes, bridged by dead reckoning.
-fn time_gaps(
-    navigation: &Navigation,
-    nodes: &[NodeData],
-    warnings: &mut Vec<String>,
-) -> Vec<TimeGap> {
+fn time_gaps(navigation: &Navigation, nodes: &[NodeData], warnings: &mut Warnings) -> Vec<TimeGap> {
     let mut gaps: Vec<TimeGap> = navigation
         .dvl_gaps()
         .iter()
@@ -549,12 +575,16 @@ fn time_gaps(
         );
     }
     for gap in &gaps {
-        warnings.push(format!(
-            "no {} data for {:.1} s from t = {:.3} s: bridged by dead reckoning",
+        let message = format!(
+            "no {} data for {:.1} s from t = {:.3} s: bridged by dead reckoning (report.json \
+             time_gaps lists every gap)",
             gap.kind,
             gap.end_s - gap.start_s,
             gap.start_s
-        ));
+        );
+        warnings.push(
+            Warning::new(WarningKind::TimeGap, 1, message).at(format!("t = {:.3} s", gap.start_s)),
+        );
     }
     gaps
 }

@@ -20,6 +20,7 @@ use echofield_frontend::intensity::IntensityKind;
 use echofield_frontend::matcher::{MatchQuality, SearchWindow};
 use echofield_frontend::scan::Scan;
 use echofield_frontend::sensors::SensorMounting;
+use echofield_frontend::warnings::Warnings;
 use echofield_graph::{NodeId, PoseGraph, Se2};
 use nalgebra::Matrix3;
 use serde::Serialize;
@@ -499,8 +500,11 @@ pub struct Report {
     /// What the beams' intensities are, and the settings scan-only
     /// (binary) data changed.
     pub intensity: IntensityReport,
-    /// Warnings worth a user's attention (gaps, skipped rotations, ...).
-    pub warnings: Vec<String>,
+    /// What was repaired or looks wrong (stamps re-sorted, implausible
+    /// samples dropped, partial rotations dropped, gaps, an assumed
+    /// mounting, ...): one entry per kind, `{kind, count, message,
+    /// first_record}` ([`echofield_frontend::warnings`]).
+    pub warnings: Warnings,
     /// The run's judgement of its own result, without ground truth
     /// ([`super::health`]).
     pub health: Health,

@@ -75,13 +75,18 @@ impl Candidate {
             || self.raw_window.theta_rad > max.theta_rad
     }
 
-    /// The window searched: the raw one clamped to `[min, max]`.
+    /// The window searched: the raw one clamped to `[min, max]`
+    /// (`LoopConfig::validate` keeps `min <= max`; were it not, `max`
+    /// wins: `max(lo).min(hi)` never panics, unlike `f64::clamp`).
     pub fn window(&self, config: &LoopConfig) -> SearchWindow {
         let (lo, hi) = (&config.min_window, &config.max_window);
         SearchWindow::new(
-            self.raw_window.x_m.clamp(lo.x_m, hi.x_m),
-            self.raw_window.y_m.clamp(lo.y_m, hi.y_m),
-            self.raw_window.theta_rad.clamp(lo.theta_rad, hi.theta_rad),
+            self.raw_window.x_m.max(lo.x_m).min(hi.x_m),
+            self.raw_window.y_m.max(lo.y_m).min(hi.y_m),
+            self.raw_window
+                .theta_rad
+                .max(lo.theta_rad)
+                .min(hi.theta_rad),
         )
     }
 

@@ -2,7 +2,9 @@
 //! consistency (TOML section `[loops]`).
 
 use crate::slam::SlamError;
-use crate::slam::config::{Window, check_range, check_window};
+use crate::slam::config::{
+    Window, check_positive_window, check_range, check_window, check_window_order,
+};
 use serde::{Deserialize, Serialize};
 
 /// Loop-closure candidates, their checks and their mutual consistency.
@@ -322,6 +324,13 @@ impl LoopConfig {
         )?;
         check_window("loops.min_window", &self.min_window)?;
         check_window("loops.max_window", &self.max_window)?;
+        check_positive_window("loops.max_window", &self.max_window)?;
+        check_window_order(
+            "loops.min_window",
+            &self.min_window,
+            "loops.max_window",
+            &self.max_window,
+        )?;
         check_range(
             "loops.min_mean_intensity",
             self.min_mean_intensity,
@@ -369,7 +378,10 @@ impl LoopConfig {
         )?;
         check_range("loops.drift_fraction", self.drift_fraction, 0.0, 10.0)?;
         check_window("loops.densify_max_window", &self.densify_max_window)?;
+        check_positive_window("loops.densify_max_window", &self.densify_max_window)?;
         check_window("loops.densify_max_sigma", &self.densify_max_sigma)?;
+        check_positive_window("loops.densify_max_sigma", &self.densify_max_sigma)?;
+        check_positive_window("loops.max_sigma", &self.max_sigma)?;
         check_range(
             "loops.densify_correlation",
             self.densify_correlation,
