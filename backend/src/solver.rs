@@ -101,13 +101,26 @@ impl Solver {
     /// Optimises the poses of `graph` in place. On error the graph is left
     /// unchanged.
     pub fn optimize(&mut self, graph: &mut PoseGraph) -> Result<SolveSummary, SolveError> {
+        self.optimize_with(graph, None)
+    }
+
+    /// [`Solver::optimize`] with one kernel per edge (in the graph's edge
+    /// order) instead of one per edge kind.
+    pub(crate) fn optimize_with(
+        &mut self,
+        graph: &mut PoseGraph,
+        edge_kernels: Option<&[RobustKernel]>,
+    ) -> Result<SolveSummary, SolveError> {
         let start = Instant::now();
         let problem = Problem::new(graph)?;
-        let kernels: Vec<RobustKernel> = problem
-            .edges
-            .iter()
-            .map(|e| self.config.robust.kernel(e.kind))
-            .collect();
+        let kernels: Vec<RobustKernel> = match edge_kernels {
+            Some(k) if k.len() == problem.edges.len() => k.to_vec(),
+            _ => problem
+                .edges
+                .iter()
+                .map(|e| self.config.robust.kernel(e.kind))
+                .collect(),
+        };
         let mut poses = graph.poses();
         let plain = vec![RobustKernel::None; kernels.len()];
         let initial_chi2 = evaluate(&problem, &plain, &poses).chi2;
@@ -159,6 +172,36 @@ impl Solver {
         graph.set_poses(&poses);
         summary.time_s = start.elapsed().as_secs_f64();
         Ok(summary)
+    }
+
+    /// The poses the iterations of [`Solver::optimize`] would start from:
+    /// the chordal initialisation from the trusted edges when configured
+    /// (and possible), the graph's poses otherwise.
+    pub(crate) fn start_poses(&mut self, graph: &PoseGraph) -> Result<Vec<Se2>, SolveError> {
+        let mut poses = graph.poses();
+        if self.config.initialisation != Initialisation::Chordal {
+            return Ok(poses);
+        }
+        let problem = Problem::new(graph)?;
+        if problem.variables() == 0 {
+            return Ok(poses);
+        }
+        let kernels: Vec<RobustKernel> = problem
+            .edges
+            .iter()
+            .map(|e| self.config.robust.kernel(e.kind))
+            .collect();
+        let pairs = normalise(problem.block_pairs());
+        let threads = self.config.threads;
+        prepare(
+            &mut self.pose_system,
+            problem.variables(),
+            pairs,
+            threads,
+            None,
+        )?;
+        self.initialise(&problem, &kernels, &mut poses)?;
+        Ok(poses)
     }
 
     /// Chordal initialisation from the edges without a robust kernel (the

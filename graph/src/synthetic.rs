@@ -7,7 +7,7 @@
 //! the composition of the noisy odometry chain, i.e. dead reckoning, which
 //! drifts away from the truth as in a real mission.
 
-use crate::{Edge, EdgeKind, Node, PoseGraph, Se2};
+use crate::{Edge, EdgeKind, GraphError, Node, NodeId, PoseGraph, Se2};
 use nalgebra::Matrix3;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -165,6 +165,108 @@ fn build(truth: Vec<Se2>, loops: &[(usize, usize)], noise: Noise, seed: u64) -> 
         graph,
         ground_truth: truth,
     }
+}
+
+/// How [`add_false_loops`] draws its outliers.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FalseLoops {
+    /// Number of false loop closures to add.
+    pub count: usize,
+    /// Each translation component of a false measurement is drawn uniformly
+    /// from `[-max_translation_m, max_translation_m]`, metres.
+    pub max_translation_m: f64,
+    /// Seed of the draw.
+    pub seed: u64,
+}
+
+/// Why [`add_false_loops`] could not add its outliers.
+#[derive(Debug, thiserror::Error, Clone, PartialEq)]
+#[non_exhaustive]
+pub enum FalseLoopsError {
+    #[error("false loops need a graph of at least 3 nodes, this one has {nodes}")]
+    TooFewNodes { nodes: usize },
+    #[error("false loops copy the information of an existing edge, and the graph has none")]
+    NoEdges,
+    #[error("max_translation_m must be finite and positive, got {value}")]
+    MaxTranslation { value: f64 },
+    #[error(transparent)]
+    Graph(#[from] GraphError),
+}
+
+/// Adds `spec.count` false loop closures to `graph`, in the style of the
+/// vertigo benchmarks' random outliers (Sünderhauf and Protzel, "Switchable
+/// Constraints for Robust Pose Graph SLAM", IROS 2012): each joins a random
+/// pair of distinct nodes that are not consecutive in node order, with a
+/// measurement whose translation is uniform in
+/// `[-max_translation_m, max_translation_m]²` and whose rotation is uniform
+/// in `(-π, π]`, and with the information of a randomly chosen loop closure
+/// already in the graph (the first edge's when there is none), so the
+/// outliers look as confident as the true loops.
+///
+/// Returns the `(from, to)` node ids of the added edges, in the order added.
+/// Deterministic for a given graph and seed.
+///
+/// # Errors
+/// [`FalseLoopsError`] when the graph has fewer than three nodes or no
+/// edge, or `max_translation_m` is not finite and positive.
+pub fn add_false_loops(
+    graph: &mut PoseGraph,
+    spec: FalseLoops,
+) -> Result<Vec<(NodeId, NodeId)>, FalseLoopsError> {
+    let n = graph.node_count();
+    let first_information = graph
+        .edges()
+        .next()
+        .map(|e| e.information)
+        .ok_or(FalseLoopsError::NoEdges)?;
+    if n < 3 {
+        return Err(FalseLoopsError::TooFewNodes { nodes: n });
+    }
+    if !(spec.max_translation_m.is_finite() && spec.max_translation_m > 0.0) {
+        return Err(FalseLoopsError::MaxTranslation {
+            value: spec.max_translation_m,
+        });
+    }
+    let loop_information: Vec<Matrix3<f64>> = graph
+        .edges()
+        .filter(|e| e.kind == EdgeKind::Loop)
+        .map(|e| e.information)
+        .collect();
+    let ids: Vec<NodeId> = graph.nodes().map(|node| node.id).collect();
+    let mut rng = ChaCha8Rng::seed_from_u64(spec.seed);
+    let translation =
+        rand_distr::Uniform::new_inclusive(-spec.max_translation_m, spec.max_translation_m)
+            .map_err(|_| FalseLoopsError::MaxTranslation {
+                value: spec.max_translation_m,
+            })?;
+    let rotation =
+        rand_distr::Uniform::new(-std::f64::consts::PI, std::f64::consts::PI).map_err(|_| {
+            FalseLoopsError::MaxTranslation {
+                value: spec.max_translation_m,
+            }
+        })?;
+    let mut added = Vec::with_capacity(spec.count);
+    while added.len() < spec.count {
+        let a = rand::Rng::random_range(&mut rng, 0..n);
+        let b = rand::Rng::random_range(&mut rng, 0..n);
+        if a.abs_diff(b) < 2 {
+            continue;
+        }
+        let (from, to) = (ids[a.min(b)], ids[a.max(b)]);
+        let z = Se2::new(
+            translation.sample(&mut rng),
+            translation.sample(&mut rng),
+            rotation.sample(&mut rng),
+        );
+        let information = if loop_information.is_empty() {
+            first_information
+        } else {
+            loop_information[rand::Rng::random_range(&mut rng, 0..loop_information.len())]
+        };
+        graph.add_edge(Edge::new(EdgeKind::Loop, from, to, z, information))?;
+        added.push((from, to));
+    }
+    Ok(added)
 }
 
 #[cfg(test)]

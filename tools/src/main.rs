@@ -34,6 +34,8 @@ enum Command {
     Match(cmd::matching::Args),
     /// Success rate of the matcher against ground truth, beside ICP.
     BenchMatcher(cmd::bench_matcher::Args),
+    /// The backend against false loop closures (vertigo-style benchmark).
+    BenchRobust(cmd::bench_robust::Args),
     /// Distortion of rotations and drift of dead reckoning against ground truth.
     BenchDeadReckoning(cmd::bench_dead_reckoning::Args),
     /// ATE and RPE of an estimated trajectory against a reference (TUM files).
@@ -57,6 +59,7 @@ fn main() -> ExitCode {
         Command::Calibrate(args) => cmd::calibrate::run(args),
         Command::Match(args) => cmd::matching::run(args),
         Command::BenchMatcher(args) => cmd::bench_matcher::run(args),
+        Command::BenchRobust(args) => cmd::bench_robust::run(args),
         Command::BenchDeadReckoning(args) => cmd::bench_dead_reckoning::run(args),
         Command::ErrorBudget(args) => cmd::error_budget::run(args),
         Command::Eval(args) => cmd::eval::run(args),

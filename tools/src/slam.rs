@@ -17,10 +17,11 @@
 //!    mutually consistent loops; an incremental solve ([`estimate`]) each
 //!    time the accepted set changes, so later candidates get corrected
 //!    priors and small windows.
-//! 5. **Final batch optimisation** (chordal initialisation from the trusted
-//!    edges, Levenberg-Marquardt, robust kernel on loop edges); loops the
-//!    kernel weights below [`result::ROBUST_WEIGHT_REJECTED`] are removed
-//!    and the graph solved again.
+//! 5. **Final optimisation** with false loops switched off
+//!    ([`echofield_backend::optimize_robust`]: the graph grown in node order
+//!    with the loop kernel, loops that disagree switched off, least squares
+//!    over the rest, loops that fit switched back on); switched-off loops
+//!    are rejected as `robust_kernel` and leave the graph.
 //! 6. **Evaluation** ([`evaluation`]) when the mission has ground truth,
 //!    strictly after the estimation.
 //!

@@ -3,7 +3,8 @@
 use anyhow::{Context, Result};
 use echofield::output::write_atomic;
 use echofield_backend::{
-    Algorithm, Initialisation, RobustConfig, RobustKernel, SolveSummary, SolverConfig, optimize,
+    Algorithm, Initialisation, OutlierConfig, RobustConfig, RobustKernel, RobustSolveSummary,
+    SolveSummary, SolverConfig, optimize_robust,
 };
 use echofield_graph::PoseGraph;
 use echofield_graph::io::{read_pose_graph, write_g2o};
@@ -24,8 +25,12 @@ Examples:
   # Protect against false loop closures with Dynamic Covariance Scaling
   echofield optimize datasets/posegraph/vertigo-ring/ring.g2o --output ring-opt.g2o --robust dcs
 
-Edges between consecutive vertex ids are odometry, all others loop closures;
---robust applies its kernel to loop closures only. SUMMARY.json holds
+Edges between consecutive vertex ids are odometry, all others loop closures.
+--robust treats the loop closures as suspects: the graph is grown in node
+order with the kernel on them, loops that disagree with the rest are
+switched off, and the rest is solved by least squares (backend crate,
+module outliers); the summary lists the switched-off loops. Without
+--robust every edge is trusted. SUMMARY.json holds
 initial_chi2, final_chi2 (chi2 = sum of e^T Omega e with g2o's error),
 iterations, termination, time_s (solve time in seconds, file IO excluded),
 the per-iteration log and the effective solver configuration.";
@@ -49,6 +54,16 @@ pub enum RobustArg {
     Cauchy,
     /// Dynamic Covariance Scaling, phi = 1.
     Dcs,
+}
+
+/// The kernel behind a `--robust` value.
+pub fn kernel_of(arg: RobustArg) -> RobustKernel {
+    match arg {
+        RobustArg::None => RobustKernel::None,
+        RobustArg::Huber => RobustKernel::HUBER_DEFAULT,
+        RobustArg::Cauchy => RobustKernel::CAUCHY_DEFAULT,
+        RobustArg::Dcs => RobustKernel::DCS_DEFAULT,
+    }
 }
 
 /// Initialisation choice.
@@ -97,12 +112,7 @@ pub struct Args {
 
 impl Args {
     fn config(&self) -> SolverConfig {
-        let kernel = match self.robust {
-            RobustArg::None => RobustKernel::None,
-            RobustArg::Huber => RobustKernel::HUBER_DEFAULT,
-            RobustArg::Cauchy => RobustKernel::CAUCHY_DEFAULT,
-            RobustArg::Dcs => RobustKernel::DCS_DEFAULT,
-        };
+        let kernel = kernel_of(self.robust);
         SolverConfig {
             algorithm: match self.solver {
                 SolverArg::Gn => Algorithm::GaussNewton,
@@ -129,6 +139,10 @@ struct SummaryFile<'a> {
     nodes: usize,
     #[serde(flatten)]
     summary: &'a SolveSummary,
+    /// With `--robust`: what the robust solve did (the switched-off loops,
+    /// by edge index and node ids, the growth and re-admission solves).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    robust: Option<&'a RobustSolveSummary>,
     config: &'a SolverConfig,
 }
 
@@ -138,20 +152,24 @@ pub fn run(args: Args) -> Result<()> {
     config.validate().context("invalid solver options")?;
     let start = read_pose_graph(&args.input)
         .with_context(|| format!("cannot read pose graph {}", args.input.display()))?;
-    let (mut graph, mut summary) = solve(&start, &config, &args.input)?;
+    let (mut graph, mut robust) = solve(&start, &config, &args.input)?;
     for _ in 1..args.repeat {
         let (again, s) = solve(&start, &config, &args.input)?;
-        if s.time_s < summary.time_s {
-            (graph, summary) = (again, s);
+        if s.time_s < robust.time_s {
+            (graph, robust) = (again, s);
         }
     }
+    let with_kernel = args.robust != RobustArg::None;
+    // Without a kernel the least-squares solve is the whole solve.
+    let summary = &robust.least_squares;
     write_atomic(&args.output, |w| Ok(write_g2o(&graph, w)?))?;
     if let Some(path) = &args.summary {
         let file = SummaryFile {
             input: &args.input,
             output: &args.output,
             nodes: graph.node_count(),
-            summary: &summary,
+            summary,
+            robust: with_kernel.then_some(&robust),
             config: &config,
         };
         write_atomic(path, |w| Ok(serde_json::to_writer_pretty(&mut *w, &file)?))?;
@@ -165,25 +183,33 @@ pub fn run(args: Args) -> Result<()> {
         serde_json::to_value(summary.termination)?
             .as_str()
             .unwrap_or("?"),
-        summary.time_s
+        robust.time_s
     );
-    if !summary.termination.is_converged() {
+    if with_kernel {
+        println!(
+            "{} of {} loop closures switched off (they disagree with the rest of the graph; --summary lists them)",
+            robust.switched_off.len(),
+            robust.suspect_edges
+        );
+    }
+    if robust.hit_iteration_cap() || !summary.termination.is_converged() {
         tracing::warn!(
-            "the solver stopped before converging: {:?}",
+            "the solver stopped before converging ({:?}): raise --max-iterations",
             summary.termination
         );
     }
     Ok(())
 }
 
-/// One solve of a copy of `start`.
+/// One solve of a copy of `start`: plain when `config` has no kernel,
+/// otherwise with false loops switched off (`optimize_robust`).
 fn solve(
     start: &PoseGraph,
     config: &SolverConfig,
     input: &Path,
-) -> Result<(PoseGraph, SolveSummary)> {
+) -> Result<(PoseGraph, RobustSolveSummary)> {
     let mut graph = start.clone();
-    let summary = optimize(&mut graph, config)
+    let summary = optimize_robust(&mut graph, config, &OutlierConfig::default())
         .with_context(|| format!("cannot optimise {}", input.display()))?;
     Ok((graph, summary))
 }

@@ -24,7 +24,7 @@
 
 use super::SlamError;
 use super::loops::LoopConfig;
-use echofield_backend::{Initialisation, RobustConfig, RobustKernel, SolverConfig};
+use echofield_backend::{Initialisation, OutlierConfig, RobustConfig, RobustKernel, SolverConfig};
 use echofield_frontend::dead_reckoning::DeadReckoningConfig;
 use echofield_frontend::image::ImageConfig;
 use echofield_frontend::matcher::{MatcherConfig, SearchWindow};
@@ -463,6 +463,10 @@ pub struct BackendConfig {
     /// forced, the incremental ones). Default: Levenberg-Marquardt from the
     /// chordal initialisation, Cauchy kernel (c = 2.796) on loop edges.
     pub solver: SolverConfig,
+    /// How the final solve finds and switches off false loop closures
+    /// (`echofield_backend::optimize_robust`): the loop edges are the
+    /// suspects, judged with `solver`'s loop kernel.
+    pub outliers: OutlierConfig,
 }
 
 impl Default for BackendConfig {
@@ -474,6 +478,12 @@ impl Default for BackendConfig {
             solver: SolverConfig {
                 robust: RobustConfig::loops_only(RobustKernel::CAUCHY_DEFAULT),
                 ..SolverConfig::default()
+            },
+            // The kernel stays on the loops that are kept: scan-matched
+            // loops can be slightly off without being false.
+            outliers: OutlierConfig {
+                final_kernel: true,
+                ..OutlierConfig::default()
             },
         }
     }
@@ -552,6 +562,12 @@ impl BackendConfig {
                 SlamError::config(robust_parameter(&field, &self.solver), e.to_string())
             }
             _ => SlamError::config("backend.solver", e.to_string()),
+        })?;
+        self.outliers.validate().map_err(|e| match &e {
+            echofield_backend::ConfigError::OutOfRange { field, .. } => {
+                SlamError::config(format!("backend.outliers.{field}"), e.to_string())
+            }
+            _ => SlamError::config("backend.outliers", e.to_string()),
         })
     }
 

@@ -16,7 +16,7 @@
 use super::SlamError;
 use super::config::BackendConfig;
 use super::uncertainty::{LinkGraph, information};
-use echofield_backend::{SolveSummary, Solver};
+use echofield_backend::{RobustSolveSummary, SolveSummary, Solver, optimize_robust};
 use echofield_graph::{Edge, EdgeKind, Node, NodeId, PoseGraph, Se2};
 use nalgebra::Matrix3;
 use std::collections::BTreeMap;
@@ -181,6 +181,20 @@ impl Estimate {
     ) -> Result<(PoseGraph, SolveSummary), SlamError> {
         let mut graph = self.graph()?;
         let summary = Solver::new(backend.solver.clone())?.optimize(&mut graph)?;
+        self.poses = graph.poses();
+        Ok((graph, summary))
+    }
+
+    /// The final solve with false loops switched off
+    /// ([`echofield_backend::optimize_robust`] with `backend.outliers`);
+    /// keeps the solution as the estimate. The returned graph still holds
+    /// every loop edge.
+    pub fn optimise_robust(
+        &mut self,
+        backend: &BackendConfig,
+    ) -> Result<(PoseGraph, RobustSolveSummary), SlamError> {
+        let mut graph = self.graph()?;
+        let summary = optimize_robust(&mut graph, &backend.solver, &backend.outliers)?;
         self.poses = graph.poses();
         Ok((graph, summary))
     }

@@ -8,14 +8,14 @@ use super::loops::LoopCloser;
 use super::nodes::{NodeData, build_nodes};
 use super::refine::refined_navigation;
 use super::result::{
-    DEAD_RECKONING_RATE_HZ, DeadReckoningReport, IntensityReport, NodeRecord,
-    ROBUST_WEIGHT_REJECTED, RejectReason, Report, SequentialRecord, SkippedRotation, SlamOutput,
-    SolverReport, StageTimings, TimeGap,
+    DEAD_RECKONING_RATE_HZ, DeadReckoningReport, IntensityReport, NodeRecord, OutliersReport,
+    RejectReason, Report, SequentialRecord, SkippedRotation, SlamOutput, SolverReport,
+    StageTimings, TimeGap,
 };
 use super::{
     ProgressSink, SlamError, check_sensors, health, input_checks, odometry_scale, sequential,
 };
-use echofield_backend::edge_error;
+use echofield_backend::{RobustSolveSummary, edge_error};
 use echofield_frontend::dead_reckoning::{self, Navigation};
 use echofield_frontend::intensity::{self, IntensityKind};
 use echofield_frontend::rotation::{Rotation, assemble_rotations};
@@ -24,7 +24,7 @@ use echofield_frontend::sensors::{AngleDirection, Mission, MountingSource, Senso
 use echofield_frontend::warnings::{Warning, WarningKind, Warnings};
 use echofield_graph::{EdgeKind, PoseGraph, Se2};
 use std::borrow::Cow;
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashSet};
 use std::time::Instant;
 
 /// Scan-only data: [`intensity::prepare_binary`] on the mission's beams and a
@@ -179,6 +179,16 @@ fn run(
     let mut warnings = input_warnings;
     warnings.extend(mounting_warning(&mission.mounting));
     warnings.extend(pass_warnings.iter().cloned());
+    if summary.hit_iteration_cap() {
+        warnings.push(Warning::new(
+            WarningKind::Solver,
+            1,
+            format!(
+                "the final solve stopped at its iteration cap (backend.solver.max_iterations = {}): the trajectory may not be at the optimum",
+                config.backend.solver.max_iterations
+            ),
+        ));
+    }
 
     let mut records: Vec<NodeRecord> = nodes
         .iter()
@@ -238,7 +248,8 @@ fn run(
         time_s: 0.0,
         timings,
         solver: SolverReport {
-            summary,
+            summary: summary.least_squares.clone(),
+            outliers: OutliersReport::from(&summary),
             incremental_solves: estimate.incremental_solves,
             incremental_symbolic_reused: estimate.incremental_symbolic_reused,
             incremental_time_s: estimate.incremental_time_s,
@@ -312,7 +323,7 @@ struct Pass<'a> {
     estimate: Estimate,
     closer: LoopCloser<'a>,
     graph: PoseGraph,
-    summary: echofield_backend::SolveSummary,
+    summary: RobustSolveSummary,
     warnings: Warnings,
 }
 
@@ -472,38 +483,40 @@ fn add_node(
     Ok(())
 }
 
-/// The final batch solve; loops the robust kernel nearly ignores are
-/// removed (`robust_kernel`) and the graph solved again.
+/// The final solve: `optimize_robust` with the loop edges as suspects.
+/// Loops it switches off are rejected (`robust_kernel`) and leave the
+/// graph; every accepted loop records its weight under the loop kernel at
+/// the solution.
 fn final_solve(
     config: &SlamConfig,
     estimate: &mut Estimate,
     closer: &mut LoopCloser,
-) -> Result<(PoseGraph, echofield_backend::SolveSummary), SlamError> {
+) -> Result<(PoseGraph, RobustSolveSummary), SlamError> {
     let kernel = config.backend.solver.robust.kernel(EdgeKind::Loop);
-    let (mut graph, mut summary) = estimate.optimise_batch(&config.backend)?;
-    for _ in 0..2 {
-        let poses = graph.poses();
-        let mut outliers = Vec::new();
-        for measurement in closer.accepted_measurements() {
-            let id = measurement.id;
-            let edge = graph.edges().find(|e| {
-                e.kind == EdgeKind::Loop
-                    && e.from == measurement.from as u64
-                    && e.to == measurement.to as u64
-            });
-            let Some(edge) = edge else { continue };
-            let e = edge_error(edge, &poses[measurement.from], &poses[measurement.to]);
-            let (_, weight) = kernel.evaluate(e.dot(&(edge.information * e)));
-            closer.records[id].robust_weight = Some(weight);
-            if weight < ROBUST_WEIGHT_REJECTED {
-                outliers.push(id);
-            }
+    let (mut graph, summary) = estimate.optimise_robust(&config.backend)?;
+    let switched: HashSet<(u64, u64)> = summary
+        .switched_off
+        .iter()
+        .map(|s| (s.from, s.to))
+        .collect();
+    let poses = graph.poses();
+    let mut outliers = Vec::new();
+    for measurement in closer.accepted_measurements() {
+        let (from, to) = (measurement.from as u64, measurement.to as u64);
+        let edge = graph
+            .edges()
+            .find(|e| e.kind == EdgeKind::Loop && e.from == from && e.to == to);
+        let Some(edge) = edge else { continue };
+        let e = edge_error(edge, &poses[measurement.from], &poses[measurement.to]);
+        let (_, weight) = kernel.evaluate(e.dot(&(edge.information * e)));
+        closer.records[measurement.id].robust_weight = Some(weight);
+        if switched.contains(&(from, to)) {
+            outliers.push(measurement.id);
         }
-        if outliers.is_empty() {
-            break;
-        }
+    }
+    if !outliers.is_empty() {
         closer.reject(&outliers, RejectReason::RobustKernel, estimate);
-        (graph, summary) = estimate.optimise_batch(&config.backend)?;
+        graph = estimate.graph()?;
     }
     Ok((graph, summary))
 }

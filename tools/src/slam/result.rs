@@ -148,9 +148,9 @@ pub enum RejectReason {
     /// Passed every check on its own but is not in the maximum set of
     /// mutually consistent loops.
     Inconsistent,
-    /// Accepted into the graph, but the robust kernel of the final
-    /// optimisation weights it below `ROBUST_WEIGHT_REJECTED` (an outlier
-    /// left in the graph, nearly without effect).
+    /// Accepted into the graph, but switched off by the final solve
+    /// (`echofield_backend::optimize_robust`): it disagrees with the rest of
+    /// the graph, alone and together with the other switched-off loops.
     RobustKernel,
 }
 
@@ -170,10 +170,6 @@ impl RejectReason {
         )
     }
 }
-
-/// Final weight of a loop edge under the robust kernel below which the
-/// loop counts as rejected by it.
-pub const ROBUST_WEIGHT_REJECTED: f64 = 0.1;
 
 /// The symmetric check of a loop candidate: `S_j` matched against `I_k`.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -278,14 +274,44 @@ pub struct StageTimings {
 /// The solves of a run.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct SolverReport {
-    /// The final batch solve.
+    /// The final solve (the least-squares solve over the loops that were
+    /// not switched off).
     pub summary: SolveSummary,
+    /// How the final solve dealt with false loops.
+    pub outliers: OutliersReport,
     /// Incremental solves during the mission.
     pub incremental_solves: usize,
     /// Of which reused the symbolic factorisation of the previous one.
     pub incremental_symbolic_reused: usize,
     /// Their total time, s.
     pub incremental_time_s: f64,
+}
+
+/// What `echofield_backend::optimize_robust` did in the final solve.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct OutliersReport {
+    /// Loop edges judged (the suspects).
+    pub suspect_edges: usize,
+    /// Of which switched off (rejected as `robust_kernel`).
+    pub switched_off: usize,
+    /// Solves while growing the graph in node order.
+    pub growth_steps: usize,
+    /// Least-squares solves while switching loops back on.
+    pub rounds: usize,
+    /// Whether the final solves stopped at their iteration cap.
+    pub hit_iteration_cap: bool,
+}
+
+impl From<&echofield_backend::RobustSolveSummary> for OutliersReport {
+    fn from(s: &echofield_backend::RobustSolveSummary) -> Self {
+        Self {
+            suspect_edges: s.suspect_edges,
+            switched_off: s.switched_off.len(),
+            growth_steps: s.growth_steps,
+            rounds: s.rounds,
+            hit_iteration_cap: s.hit_iteration_cap(),
+        }
+    }
 }
 
 /// The intensity scale found in the beams (`echofield_frontend::intensity`).
