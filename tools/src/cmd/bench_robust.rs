@@ -28,7 +28,7 @@ the vertigo benchmarks' random outliers; each (file, count, seed) draws the
 same loops every time. For each graph the ATE is the RMSE of the node
 positions, after SE(2) alignment, against the plain least-squares optimum
 of the clean file (chordal start, Levenberg-Marquardt). `--method robust`
-is `echofield optimize --robust`'s machinery (growth in node order, the
+is the machinery of `optimize --robust` (growth in node order, the
 kernel, switching off, least squares on the rest); `--method kernel` is
 the kernel alone from the trusted start. Edges between consecutive ids are
 trusted (odometry), all others suspect.";
