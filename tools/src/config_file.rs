@@ -40,6 +40,18 @@ pub struct ConfigFileError {
     pub message: String,
 }
 
+/// Reads a config file as text: an I/O error names the file, invalid
+/// UTF-8 names the file, line, column and byte offset
+/// ([`echofield_graph::io::read_text`]), and a leading byte-order mark is
+/// dropped.
+pub fn read_config_text(path: &std::path::Path) -> Result<String, echofield_graph::io::IoError> {
+    let text = echofield_graph::io::read_text(path)?;
+    Ok(match text.strip_prefix('\u{feff}') {
+        Some(rest) => rest.to_string(),
+        None => text,
+    })
+}
+
 /// `text` (TOML) laid over `defaults` (see the module doc).
 pub fn from_toml_over<T: Serialize + DeserializeOwned>(
     text: &str,
@@ -140,6 +152,22 @@ mod tests {
         // Plain serde, for contrast, takes the type's default for `a`.
         let plain: Outer = toml::from_str("[inner]\nb = 5.0\n").unwrap();
         assert_eq!(plain.inner, Inner { a: 1.0, b: 5.0 });
+    }
+
+    #[test]
+    fn config_text_drops_a_bom_and_names_invalid_utf8() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("c.toml");
+        std::fs::write(&path, b"\xEF\xBB\xBF[inner]\nb = 5.0\n").unwrap();
+        let text = read_config_text(&path).unwrap();
+        let c: Outer = from_toml_over(&text, &defaults()).unwrap();
+        assert_eq!(c.inner.b, 5.0);
+        std::fs::write(&path, b"[inner]\nb = \"\xC3\"\n").unwrap();
+        let message = read_config_text(&path).unwrap_err().to_string();
+        assert!(
+            message.contains("c.toml:2") && message.contains("byte 12"),
+            "{message}"
+        );
     }
 
     #[test]

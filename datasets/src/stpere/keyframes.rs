@@ -354,13 +354,16 @@ fn grid_cell(
 fn read_pcd(path: &Path) -> Result<Vec<Point>, DatasetError> {
     let bytes = std::fs::read(path).map_err(|e| DatasetError::io(path, e))?;
     let text = std::str::from_utf8(&bytes).map_err(|e| {
-        let line = bytes[..e.valid_up_to()]
-            .iter()
-            .filter(|&&b| b == b'\n')
-            .count()
-            + 1;
-        DatasetError::parse(path, format!("line {line}"), "text", "not valid UTF-8")
+        let offset = e.valid_up_to();
+        let line = bytes[..offset].iter().filter(|&&b| b == b'\n').count() + 1;
+        DatasetError::parse(
+            path,
+            format!("line {line}"),
+            "text",
+            format!("invalid UTF-8 at byte {offset}: a PCD header and ASCII data are expected"),
+        )
     })?;
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     let mut declared_points: Option<usize> = None;
     let mut lines = text.lines().enumerate().map(|(i, l)| (i + 1, l.trim()));
     let err = |line: usize, field: &str, message: String| {
@@ -419,7 +422,10 @@ fn read_pcd(path: &Path) -> Result<Vec<Point>, DatasetError> {
         path: path.to_path_buf(),
         message: "the header has no POINTS line".into(),
     })?;
-    let mut points = Vec::with_capacity(declared);
+    // The declared count is only trusted as far as the file could hold it
+    // (a point takes at least six bytes): a corrupted POINTS line must not
+    // reserve memory the data cannot fill.
+    let mut points = Vec::with_capacity(declared.min(bytes.len() / 6));
     for (line, content) in lines {
         if content.is_empty() {
             continue;

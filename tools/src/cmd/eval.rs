@@ -47,6 +47,15 @@ struct Report {
 }
 
 pub fn run(args: Args) -> Result<()> {
+    if !(args.max_time_diff.is_finite() && args.max_time_diff > 0.0) {
+        anyhow::bail!(
+            "--max-time-diff must be a positive number of seconds, got {}",
+            args.max_time_diff
+        );
+    }
+    if let Some(d) = args.rpe_distances.iter().find(|d| !(d.is_finite() && **d > 0.0)) {
+        anyhow::bail!("--rpe-distances must be positive distances in metres, got {d}");
+    }
     let estimate = read_tum(&args.estimate).context("reading the estimate")?;
     let reference = read_tum(&args.reference).context("reading the reference")?;
     let ate = ate(&estimate, &reference, args.align, args.max_time_diff)?;
