@@ -192,10 +192,10 @@ mod tests {
 
     #[test]
     fn a_leading_bom_is_skipped_and_the_last_line_is_marked() {
-        let records: Vec<_> = records("\u{feff}A 1\r\nB 2").collect();
-        assert_eq!(records[0].tokens, ["A", "1"]);
-        assert!(!records[0].unterminated);
-        assert_eq!((records[1].line, records[1].unterminated), (2, true));
+        let found: Vec<_> = records("\u{feff}A 1\r\nB 2").collect();
+        assert_eq!(found[0].tokens, ["A", "1"]);
+        assert!(!found[0].unterminated);
+        assert_eq!((found[1].line, found[1].unterminated), (2, true));
         assert!(records("A 1\n").all(|r| !r.unterminated));
     }
 

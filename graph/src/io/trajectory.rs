@@ -192,6 +192,32 @@ mod tests {
         assert!(err.to_string().contains("stamp"), "{err}");
     }
 
+    // Issue 35: a TUM value of 1e308 gave an ATE of NaN with exit status 0.
+    #[test]
+    fn tum_rejects_absurd_values_naming_line_and_field() {
+        let text = "1.0 0 0 0 0 0 0 1\n2.0 1e308 0 0 0 0 0 1\n";
+        let err = parse_tum(text, Path::new("t.txt")).unwrap_err();
+        let message = err.to_string();
+        assert_eq!(err.line(), Some(2));
+        assert!(
+            message.contains("t.txt:2") && message.contains("`x`") && message.contains("range"),
+            "{message}"
+        );
+        let text = "1e300 0 0 0 0 0 0 1\n";
+        let err = parse_tum(text, Path::new("t.txt")).unwrap_err();
+        assert!(err.to_string().contains("`stamp`"), "{err}");
+    }
+
+    #[test]
+    fn tum_skips_a_bom_and_refuses_a_cut_last_line() {
+        let text = "\u{feff}1.0 0 0 0 0 0 0 1\n2.0 1 0 0 0 0 0 1\n";
+        assert_eq!(parse_tum(text, Path::new("t.txt")).unwrap().len(), 2);
+        let cut = "1.0 0 0 0 0 0 0 1\n2.0 1 0 0 0 0 0.7 0.7";
+        let err = parse_tum(cut, Path::new("t.txt")).unwrap_err();
+        assert_eq!(err.line(), Some(2));
+        assert!(err.to_string().contains("`qw`"), "{err}");
+    }
+
     #[test]
     fn kitti_row_is_rotation_and_translation() {
         let poses = [TrajectoryPose {

@@ -1,9 +1,9 @@
 //! `echofield-fuzz`: runs the parser fuzz targets of `echofield::fuzz`.
 //!
 //! ```text
-//! cargo run --release -p echofield --bin echofield-fuzz -- all --seconds 600 --seed 1
-//! cargo run --release -p echofield --bin echofield-fuzz -- g2o tum --inputs 100000
-//! cargo run --release -p echofield --bin echofield-fuzz -- g2o --replay fuzz-findings/g2o/panic-17
+//! cargo run --release --bin echofield-fuzz -- all --seconds 600 --seed 1
+//! cargo run --release --bin echofield-fuzz -- g2o tum --inputs 100000
+//! cargo run --release --bin echofield-fuzz -- g2o --replay fuzz-findings/g2o/panic-17
 //! ```
 //! Exit status 0 when no input panicked or hung, 1 otherwise.
 
