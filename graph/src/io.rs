@@ -21,8 +21,8 @@ mod error;
 mod lines;
 
 pub use error::IoError;
-pub use lines::{MAX_ABS_ANGLE_RAD, MAX_ABS_INFORMATION, MAX_ABS_POSITION_M};
 pub use g2o::write_g2o;
+pub use lines::{MAX_ABS_ANGLE_RAD, MAX_ABS_INFORMATION, MAX_ABS_POSITION_M};
 pub use trajectory::{
     TrajectoryPose, graph_trajectory, read_tum, write_csv, write_kitti, write_tum,
 };

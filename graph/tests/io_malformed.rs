@@ -173,7 +173,12 @@ fn a_leading_byte_order_mark_is_skipped() {
     let graph = parse_pose_graph(&text, Path::new("bom.g2o")).unwrap();
     assert_eq!((graph.node_count(), graph.edge_count()), (3, 2));
     let toro = "\u{feff}VERTEX2 0 0 0 0\nVERTEX2 1 1 0 0\nEDGE2 0 1 1 0 0 10 1 20 30 2 3\n";
-    assert_eq!(parse_pose_graph(toro, Path::new("bom.graph")).unwrap().edge_count(), 1);
+    assert_eq!(
+        parse_pose_graph(toro, Path::new("bom.graph"))
+            .unwrap()
+            .edge_count(),
+        1
+    );
 }
 
 #[test]

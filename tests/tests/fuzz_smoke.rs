@@ -7,7 +7,7 @@ use std::time::Duration;
 
 /// Inputs per target: enough to reach every mutation and generator branch
 /// a few times, few enough for a debug build to finish in seconds.
-const INPUTS: u64 = 150;
+const INPUTS: u64 = 400;
 
 fn short_pass(name: &str) {
     let options = FuzzOptions {
@@ -26,13 +26,22 @@ fn short_pass(name: &str) {
     // rejected means the generator or the seeds are broken, all accepted
     // means the mutations do not reach it.
     assert!(report.errors > 0, "no input rejected: {}", report.summary());
-    assert!(report.accepted > 0, "no input accepted: {}", report.summary());
+    assert!(
+        report.accepted > 0,
+        "no input accepted: {}",
+        report.summary()
+    );
     let findings: Vec<String> = report
         .findings
         .iter()
         .map(|f| format!("{} on input {}: {}", f.kind, f.input_index, f.message))
         .collect();
-    assert!(findings.is_empty(), "{}\n{}", report.summary(), findings.join("\n"));
+    assert!(
+        findings.is_empty(),
+        "{}\n{}",
+        report.summary(),
+        findings.join("\n")
+    );
 }
 
 #[test]

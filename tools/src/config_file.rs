@@ -165,7 +165,7 @@ mod tests {
         std::fs::write(&path, b"[inner]\nb = \"\xC3\"\n").unwrap();
         let message = read_config_text(&path).unwrap_err().to_string();
         assert!(
-            message.contains("c.toml:2") && message.contains("byte 12"),
+            message.contains("c.toml:2") && message.contains("byte 13"),
             "{message}"
         );
     }

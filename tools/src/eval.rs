@@ -107,7 +107,9 @@ pub fn ate(
     max_time_diff_s: f64,
 ) -> Result<AteStats> {
     if !(max_time_diff_s.is_finite() && max_time_diff_s > 0.0) {
-        bail!("the largest time difference must be a positive number of seconds, got {max_time_diff_s}");
+        bail!(
+            "the largest time difference must be a positive number of seconds, got {max_time_diff_s}"
+        );
     }
     let pairs = associate(estimate, reference, max_time_diff_s);
     if pairs.is_empty() {

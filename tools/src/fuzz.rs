@@ -350,7 +350,8 @@ pub fn fuzz_target(target: Target, options: &FuzzOptions) -> anyhow::Result<Fuzz
 
 /// Two error messages of the same kind: equal once digits are dropped.
 fn same_kind(a: &str, b: &str) -> bool {
-    let shape = |s: &str| -> String { s.chars().filter(|c| !c.is_ascii_digit()).take(80).collect() };
+    let shape =
+        |s: &str| -> String { s.chars().filter(|c| !c.is_ascii_digit()).take(80).collect() };
     shape(a) == shape(b)
 }
 

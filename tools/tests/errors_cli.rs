@@ -50,20 +50,36 @@ fn a_graph_error_is_printed_once() {
 fn invalid_utf8_and_a_bom_in_a_graph() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out.g2o");
-    let bad = write(dir.path(), "bad.g2o", b"VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 \xff 0 0\n");
-    let stderr = failure(&echofield(&["optimize", &bad, "--output", out.to_str().unwrap()]));
+    let bad = write(
+        dir.path(),
+        "bad.g2o",
+        b"VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 \xff 0 0\n",
+    );
+    let stderr = failure(&echofield(&[
+        "optimize",
+        &bad,
+        "--output",
+        out.to_str().unwrap(),
+    ]));
     assert!(
         stderr.contains("bad.g2o:2") && stderr.contains("byte 32"),
         "{stderr}"
     );
-    assert!(!stderr.contains("stream did not contain valid UTF-8"), "{stderr}");
+    assert!(
+        !stderr.contains("stream did not contain valid UTF-8"),
+        "{stderr}"
+    );
     let bom = write(
         dir.path(),
         "bom.g2o",
         b"\xEF\xBB\xBFVERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0\nEDGE_SE2 0 1 1 0 0 1 0 0 1 0 1\nFIX 0\n",
     );
     let run = echofield(&["optimize", &bom, "--output", out.to_str().unwrap()]);
-    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
 }
 
 #[test]
@@ -99,6 +115,10 @@ fn eval_refuses_distances_and_time_differences_that_are_not_positive() {
     assert!(stderr.contains("--max-time-diff"), "{stderr}");
     // The same files with sound options evaluate to 0.
     let run = echofield(&base);
-    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
     assert!(String::from_utf8_lossy(&run.stdout).contains("rmse 0.000000"));
 }

@@ -163,7 +163,13 @@ pub(crate) fn pose_fields(
 ) -> Result<Se2, IoError> {
     let names = &names[first - 1..first + 2];
     let position = |k: usize| {
-        record.bounded(path, first + k, names[k], MAX_ABS_POSITION_M, "a position in metres")
+        record.bounded(
+            path,
+            first + k,
+            names[k],
+            MAX_ABS_POSITION_M,
+            "a position in metres",
+        )
     };
     let (x, y) = (position(0)?, position(1)?);
     let theta = record.bounded(

@@ -17,7 +17,9 @@ use std::time::Duration;
 /// keyframes, Ping360, MiniKing bags, config TOML) with seeded structured
 /// and mutated inputs; report inputs, errors, panics and hangs.
 #[derive(Debug, Parser)]
-#[command(name = "echofield-fuzz", after_help = "\
+#[command(
+    name = "echofield-fuzz",
+    after_help = "\
 Examples:
   # Every target for ten minutes each, one after the other
   echofield-fuzz all --seconds 600 --seed 1
@@ -26,7 +28,8 @@ Examples:
   echofield-fuzz g2o tum --inputs 100000 --seed 7
 
   # Parse a saved finding again (a folder under --findings)
-  echofield-fuzz g2o --replay fuzz-findings/g2o/panic-17")]
+  echofield-fuzz g2o --replay fuzz-findings/g2o/panic-17"
+)]
 struct Cli {
     /// Targets to run (`all` for every one): g2o, toro, tum, mcap, stpere,
     /// keyframes, ping360, miniking, config.
@@ -77,7 +80,10 @@ fn run(cli: &Cli) -> anyhow::Result<bool> {
     let mut targets = Vec::new();
     for name in &names {
         targets.push(echofield::fuzz::target(name).ok_or_else(|| {
-            anyhow::anyhow!("unknown target `{name}` (known: {})", TARGET_NAMES.join(", "))
+            anyhow::anyhow!(
+                "unknown target `{name}` (known: {})",
+                TARGET_NAMES.join(", ")
+            )
         })?);
     }
     if let Some(folder) = &cli.replay {
@@ -101,7 +107,9 @@ fn run(cli: &Cli) -> anyhow::Result<bool> {
     };
     let options = FuzzOptions {
         seed: cli.seed,
-        max_inputs: cli.inputs.or(if duration.is_none() { Some(1000) } else { None }),
+        max_inputs: cli
+            .inputs
+            .or(if duration.is_none() { Some(1000) } else { None }),
         duration,
         timeout: Duration::from_secs_f64(cli.timeout),
         findings_dir: Some(cli.findings.clone()),

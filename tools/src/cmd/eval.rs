@@ -53,7 +53,11 @@ pub fn run(args: Args) -> Result<()> {
             args.max_time_diff
         );
     }
-    if let Some(d) = args.rpe_distances.iter().find(|d| !(d.is_finite() && **d > 0.0)) {
+    if let Some(d) = args
+        .rpe_distances
+        .iter()
+        .find(|d| !(d.is_finite() && **d > 0.0))
+    {
         anyhow::bail!("--rpe-distances must be positive distances in metres, got {d}");
     }
     let estimate = read_tum(&args.estimate).context("reading the estimate")?;

@@ -283,7 +283,11 @@ pub fn miniking_bag(rng: &mut ChaCha8Rng) -> Vec<u8> {
     use echofield_datasets::miniking::acoustic_beam::{
         ACOUSTIC_BEAM_MD5, ACOUSTIC_BEAM_TYPE, AcousticBeam, encode_acoustic_beam,
     };
-    let conn: u32 = if rng.random_bool(0.95) { 0 } else { rng.random() };
+    let conn: u32 = if rng.random_bool(0.95) {
+        0
+    } else {
+        rng.random()
+    };
     let topic = "/miniking_node/sonar";
     let mut connection_header = Vec::new();
     for (name, value) in [

@@ -52,7 +52,9 @@ pub fn mutate_input(input: &mut Input, seeds: &[Input], rng: &mut ChaCha8Rng) {
 
 fn pick_donor(seeds: &[Input], rng: &mut ChaCha8Rng) -> Option<Vec<u8>> {
     let seed = seeds.get(rng.random_range(0..seeds.len().max(1)))?;
-    let (_, bytes) = seed.files.get(rng.random_range(0..seed.files.len().max(1)))?;
+    let (_, bytes) = seed
+        .files
+        .get(rng.random_range(0..seed.files.len().max(1)))?;
     Some(bytes.clone())
 }
 
@@ -177,7 +179,10 @@ fn replace_number(bytes: &mut Vec<u8>, rng: &mut ChaCha8Rng) {
     let replacement = if rng.random_bool(0.8) {
         NASTY_NUMBERS[rng.random_range(0..NASTY_NUMBERS.len())].to_string()
     } else {
-        format!("{}", rng.random::<f64>() * 10f64.powi(rng.random_range(-10..40)))
+        format!(
+            "{}",
+            rng.random::<f64>() * 10f64.powi(rng.random_range(-10..40))
+        )
     };
     bytes.splice(start..end, replacement.bytes());
 }

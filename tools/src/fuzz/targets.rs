@@ -34,7 +34,15 @@ pub struct Target {
 
 /// Names of every target, in the order `all` runs them.
 pub const TARGET_NAMES: [&str; 9] = [
-    "g2o", "toro", "tum", "mcap", "stpere", "keyframes", "ping360", "miniking", "config",
+    "g2o",
+    "toro",
+    "tum",
+    "mcap",
+    "stpere",
+    "keyframes",
+    "ping360",
+    "miniking",
+    "config",
 ];
 
 /// Every target.
@@ -272,9 +280,8 @@ fn tum_seeds() -> Result<Vec<Input>> {
 /// `echofield eval` does: an accepted pair must give finite statistics.
 fn parse_tum_pair(dir: &Path) -> Result<(), String> {
     use crate::eval::{Alignment, ate, rpe};
-    let read = |name: &str| {
-        echofield_graph::io::read_tum(&dir.join(name)).map_err(|e| error_chain(&e))
-    };
+    let read =
+        |name: &str| echofield_graph::io::read_tum(&dir.join(name)).map_err(|e| error_chain(&e));
     let (estimate, reference) = (read("estimate.txt")?, read("reference.txt")?);
     for alignment in [Alignment::Se2, Alignment::None] {
         match ate(&estimate, &reference, alignment, 0.01) {
@@ -317,8 +324,9 @@ fn mcap_bytes(mission: &echofield_frontend::sensors::Mission, ros2: bool) -> Res
 }
 
 fn mcap_seeds() -> Result<Vec<Input>> {
-    let mut mission =
-        echofield_datasets::mcap::read_mission(&repo_root().join("datasets/samples/tank-seed1.mcap"))?;
+    let mut mission = echofield_datasets::mcap::read_mission(
+        &repo_root().join("datasets/samples/tank-seed1.mcap"),
+    )?;
     mission.beams.truncate(60);
     let end_s = mission.beams.last().map_or(f64::INFINITY, |b| b.stamp_s);
     mission.dvl.retain(|s| s.stamp_s <= end_s);
@@ -402,7 +410,8 @@ fn keyframe_context() -> Result<&'static KeyframeContext, String> {
 }
 
 fn load_keyframe_context() -> Result<KeyframeContext> {
-    let logs = echofield_datasets::stpere::read_stpere_dir(&repo_root().join("datasets/stpere-marina"))?;
+    let logs =
+        echofield_datasets::stpere::read_stpere_dir(&repo_root().join("datasets/stpere-marina"))?;
     let setup = logs
         .sonar_setup
         .context("the St Pere fixture has no _SETUP.log")?;
@@ -414,7 +423,10 @@ fn load_keyframe_context() -> Result<KeyframeContext> {
         &setup,
         dir.path(),
     )?;
-    let csv = std::fs::read(dir.path().join(echofield_datasets::stpere::keyframes::KEYFRAME_CSV))?;
+    let csv = std::fs::read(
+        dir.path()
+            .join(echofield_datasets::stpere::keyframes::KEYFRAME_CSV),
+    )?;
     let mut seed = Input::single(
         echofield_datasets::stpere::keyframes::KEYFRAME_CSV,
         first_lines(&csv, 4),
@@ -485,21 +497,27 @@ fn ping360_seeds() -> Result<Vec<Input>> {
         .iter()
         .map(|name| {
             let bytes = fixture(&format!("datasets/msis-real/ping360/{name}"))?;
-            Ok(Input::single("log.bin", bytes[..bytes.len().min(48 * 1024)].to_vec()))
+            Ok(Input::single(
+                "log.bin",
+                bytes[..bytes.len().min(48 * 1024)].to_vec(),
+            ))
         })
         .collect()
 }
 
 fn miniking_seeds() -> Result<Vec<Input>> {
-    ["full_sonar_scan_2015-05-26-11-38-04.bag", "narrow_sonar_scan_2015-05-26-11-41-49.bag"]
-        .iter()
-        .map(|name| {
-            Ok(Input::single(
-                "scan.bag",
-                fixture(&format!("datasets/msis-real/miniking/{name}"))?,
-            ))
-        })
-        .collect()
+    [
+        "full_sonar_scan_2015-05-26-11-38-04.bag",
+        "narrow_sonar_scan_2015-05-26-11-41-49.bag",
+    ]
+    .iter()
+    .map(|name| {
+        Ok(Input::single(
+            "scan.bag",
+            fixture(&format!("datasets/msis-real/miniking/{name}"))?,
+        ))
+    })
+    .collect()
 }
 
 fn config_seeds() -> Result<Vec<Input>> {
@@ -526,13 +544,16 @@ fn config_seeds() -> Result<Vec<Input>> {
 fn parse_configs(dir: &Path) -> Result<(), String> {
     let path = dir.join("config.toml");
     let slam = crate::slam::SlamConfig::from_toml_file(&path).map(drop);
-    let calibrate = crate::calibration::CalibrateSettings::from_optional_file(Some(&path)).map(drop);
+    let calibrate =
+        crate::calibration::CalibrateSettings::from_optional_file(Some(&path)).map(drop);
     let matching = crate::matching::MatchingConfig::from_toml_file(&path).map(drop);
     let sim = std::fs::read_to_string(&path)
         .map_err(anyhow::Error::from)
         .and_then(|text| {
-            let config: echofield_datasets::sim::SimConfig =
-                crate::config_file::from_toml_over(&text, &echofield_datasets::sim::SimConfig::default())?;
+            let config: echofield_datasets::sim::SimConfig = crate::config_file::from_toml_over(
+                &text,
+                &echofield_datasets::sim::SimConfig::default(),
+            )?;
             config.validate()?;
             Ok(())
         });
