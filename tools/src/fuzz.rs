@@ -382,3 +382,72 @@ fn save_finding(
     std::fs::write(folder.join("FINDING.txt"), format!("{kind}: {message}\n"))?;
     Ok(folder)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A target whose "parser" panics on inputs holding `!`, spins on
+    /// inputs holding `~` and rejects those holding `?`: the harness must
+    /// count and save each kind.
+    fn planted_bugs() -> Target {
+        Target {
+            name: "planted",
+            about: "test target with planted bugs",
+            seeds: || Ok(vec![Input::single("x.txt", b"abc".to_vec())]),
+            generate: |rng| {
+                let byte = [b'a', b'!', b'~', b'?'][rng.random_range(0..4)];
+                Input::single("x.txt", vec![byte])
+            },
+            parse: Arc::new(|dir: &Path| {
+                let bytes = std::fs::read(dir.join("x.txt")).map_err(|e| e.to_string())?;
+                if bytes.contains(&b'!') {
+                    panic!("planted panic");
+                }
+                if bytes.contains(&b'~') {
+                    std::thread::sleep(Duration::from_secs(5));
+                }
+                if bytes.contains(&b'?') {
+                    return Err("planted error".into());
+                }
+                Ok(())
+            }),
+        }
+    }
+
+    #[test]
+    fn panics_hangs_and_errors_are_counted_and_saved() {
+        let findings = tempfile::tempdir().unwrap();
+        let options = FuzzOptions {
+            seed: 3,
+            max_inputs: Some(40),
+            duration: None,
+            timeout: Duration::from_millis(200),
+            findings_dir: Some(findings.path().to_path_buf()),
+            generated_share: 1.0,
+        };
+        let report = fuzz_target(planted_bugs(), &options).unwrap();
+        assert!(report.panics > 0, "{}", report.summary());
+        assert!(report.errors > 0, "{}", report.summary());
+        assert!(report.accepted > 0, "{}", report.summary());
+        // The run stops at the hang limit, or runs its 40 inputs.
+        assert!(
+            report.hangs as usize == MAX_HANGS || report.inputs == 40,
+            "{}",
+            report.summary()
+        );
+        assert_eq!(
+            report.inputs,
+            report.accepted + report.errors + report.panics + report.hangs
+        );
+        let panic = report.findings.iter().find(|f| f.kind == "panic").unwrap();
+        assert!(panic.message.contains("planted panic"), "{}", panic.message);
+        let saved = panic.saved_to.as_ref().unwrap();
+        assert_eq!(std::fs::read(saved.join("x.txt")).unwrap(), b"!");
+        assert!(saved.join("FINDING.txt").is_file());
+        if report.hangs > 0 {
+            let hang = report.findings.iter().find(|f| f.kind == "hang").unwrap();
+            assert_eq!(hang.input.files[0].1, b"~");
+        }
+    }
+}

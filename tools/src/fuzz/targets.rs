@@ -55,14 +55,14 @@ pub fn target(name: &str) -> Option<Target> {
     let t = match name {
         "g2o" => Target {
             name: "g2o",
-            about: "g2o pose graphs (echofield_graph::io::read_pose_graph)",
+            about: "g2o pose graphs (read_pose_graph, then optimised when small)",
             seeds: g2o_seeds,
             generate: |rng| Input::single("graph.g2o", generate::pose_graph_text(rng, false)),
             parse: Arc::new(|dir| read_graph(&dir.join("graph.g2o"))),
         },
         "toro" => Target {
             name: "toro",
-            about: "TORO pose graphs (echofield_graph::io::read_pose_graph)",
+            about: "TORO pose graphs (read_pose_graph, then optimised when small)",
             seeds: toro_seeds,
             generate: |rng| Input::single("graph.graph", generate::pose_graph_text(rng, true)),
             parse: Arc::new(|dir| read_graph(&dir.join("graph.graph"))),
@@ -202,11 +202,21 @@ fn first_lines(bytes: &[u8], n: usize) -> Vec<u8> {
     bytes[..end].to_vec()
 }
 
+/// Graphs up to this many nodes are also optimised, as `echofield
+/// optimize` would (larger ones would slow the fuzzing down).
+const SOLVE_MAX_NODES: usize = 300;
+
 fn read_graph(path: &Path) -> Result<(), String> {
-    let graph = echofield_graph::io::read_pose_graph(path).map_err(|e| error_chain(&e))?;
+    let mut graph = echofield_graph::io::read_pose_graph(path).map_err(|e| error_chain(&e))?;
     // Writing it back must work for whatever was accepted.
     let mut out = Vec::new();
     echofield_graph::io::write_g2o(&graph, &mut out).map_err(|e| e.to_string())?;
+    // Whatever the reader accepts, the solver must take without panicking
+    // or hanging (an error is fine).
+    if graph.node_count() <= SOLVE_MAX_NODES {
+        let config = echofield_backend::SolverConfig::default();
+        echofield_backend::optimize(&mut graph, &config).map_err(|e| error_chain(&e))?;
+    }
     Ok(())
 }
 
