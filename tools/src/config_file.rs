@@ -66,9 +66,20 @@ pub fn from_toml_over<T: Serialize + DeserializeOwned>(
         message: e.to_string(),
     })?;
     lay_over(&mut merged, user);
-    serde_path_to_error::deserialize(toml::Value::Table(merged)).map_err(|e| ConfigFileError {
-        path: e.path().to_string(),
-        message: e.into_inner().to_string().trim_end().to_string(),
+    serde_path_to_error::deserialize(toml::Value::Table(merged)).map_err(|e| {
+        let path = e.path().to_string();
+        let message = e.into_inner().to_string();
+        // toml ends some messages with a line naming the key again
+        // (`in `loops.min_window``); the path is already given, once.
+        let message = message.trim_end();
+        let message = match message.rsplit_once('\n') {
+            Some((head, tail)) if tail.trim_start().starts_with("in `") => head.trim_end(),
+            _ => message,
+        };
+        ConfigFileError {
+            path,
+            message: message.to_string(),
+        }
     })
 }
 
@@ -198,6 +209,8 @@ mod tests {
         assert_eq!(err.path, "inner.c");
         let err = from_toml_over::<Outer>("[inner]\na = \"no\"\n", &defaults()).unwrap_err();
         assert_eq!(err.path, "inner.a");
+        // The key is named once, by the path, not again in the message.
+        assert!(!err.message.contains("inner.a"), "{err}");
         let err = from_toml_over::<Outer>("[inner\n", &defaults()).unwrap_err();
         assert_eq!(err.path, "(document)");
         assert!(err.message.contains("line 1"), "{err}");
