@@ -606,6 +606,55 @@ mod tests {
         }
     }
 
+    // Issue 35: a POINTS count of u64::MAX made the reader reserve memory
+    // for that many points (a capacity-overflow panic); invalid UTF-8 gave
+    // no byte offset; a byte-order mark hid the first header key.
+    #[test]
+    fn a_huge_point_count_invalid_utf8_and_a_bom() {
+        let h = std::f64::consts::FRAC_1_SQRT_2;
+        let good = pcd(&[(h, h)]);
+        let huge = good.replace("POINTS 1", "POINTS 18446744073709551615");
+        let err = error_of("pclKeyFrame1.pcd", &huge);
+        assert!(
+            err.contains("declares") && err.contains("truncated"),
+            "{err}"
+        );
+        let mut latin1 = good.clone().into_bytes();
+        let at = good.find("0.7071").unwrap();
+        latin1[at] = 0xB0;
+        let dir = folder();
+        std::fs::write(dir.path().join("pclKeyFrame1.pcd"), latin1).unwrap();
+        let err = read_keyframes(
+            dir.path(),
+            &setup(),
+            &stamps(20),
+            SweepTiming::AngleIncreasing,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            err.contains("line 12") && err.contains(&format!("byte {at}")),
+            "{err}"
+        );
+        let dir = folder();
+        let bom = format!("\u{feff}{}", good.replace("# .PCD v0.7\n", ""));
+        std::fs::write(dir.path().join("pclKeyFrame1.pcd"), bom).unwrap();
+        let bad_fields = format!(
+            "\u{feff}{}",
+            good.replace("# .PCD v0.7\nVERSION 0.7\n", "")
+                .replace("FIELDS x y z", "FIELDS x y")
+        );
+        read_keyframes(
+            dir.path(),
+            &setup(),
+            &stamps(20),
+            SweepTiming::AngleIncreasing,
+        )
+        .unwrap();
+        let err = error_of("pclKeyFrame1.pcd", &bad_fields);
+        assert!(err.contains("FIELDS"), "{err}");
+    }
+
     #[test]
     fn bad_rotation_lists_are_errors() {
         let header = "keyFrame,keyFrameBeginning,keyFrameEnd\n";
