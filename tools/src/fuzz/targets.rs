@@ -9,7 +9,6 @@
 use super::Input;
 use super::generate;
 use anyhow::{Context, Result};
-use echofield_datasets::stpere::{BeamStamp, SonarSetup};
 use echofield_frontend::sensors::SweepTiming;
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
@@ -110,7 +109,7 @@ pub fn target(name: &str) -> Option<Target> {
         },
         "keyframes" => Target {
             name: "keyframes",
-            about: "St Pere keyframe point sets (keyFrameTimeStamps.csv + pclKeyFrameK.pcd)",
+            about: "St Pere keyframe point sets (keyFrameTimeStamps.csv + pclKeyFrameK.pcd) with their navigation folder",
             seeds: keyframe_seeds,
             generate: |rng| {
                 let mut input = match keyframe_context() {
@@ -373,22 +372,25 @@ fn random_mcap(rng: &mut ChaCha8Rng) -> Vec<u8> {
 /// the folder still parses.
 fn stpere_seed_files() -> &'static Input {
     static SEED: OnceLock<Input> = OnceLock::new();
-    SEED.get_or_init(|| {
-        let mut input = Input::default();
-        for (kind, lines) in [
-            ("DVL", 160),
-            ("MTI", 120),
-            ("DGPS", 60),
-            ("SETUP", 5),
-            ("IS_timestamps", 200),
-        ] {
-            let name = format!("_040825_1735_{kind}.log");
-            if let Ok(bytes) = fixture(&format!("datasets/stpere-marina/{name}")) {
-                input.files.push((name, first_lines(&bytes, lines)));
-            }
+    SEED.get_or_init(|| stpere_logs(200))
+}
+
+/// The St Pere logs cut short; `beam_stamps` lines of `_IS_timestamps.log`.
+fn stpere_logs(beam_stamps: usize) -> Input {
+    let mut input = Input::default();
+    for (kind, lines) in [
+        ("DVL", 160),
+        ("MTI", 120),
+        ("DGPS", 60),
+        ("SETUP", 5),
+        ("IS_timestamps", beam_stamps),
+    ] {
+        let name = format!("_040825_1735_{kind}.log");
+        if let Ok(bytes) = fixture(&format!("datasets/stpere-marina/{name}")) {
+            input.files.push((name, first_lines(&bytes, lines)));
         }
-        input
-    })
+    }
+    input
 }
 
 fn stpere_seeds() -> Result<Vec<Input>> {
@@ -402,12 +404,10 @@ fn stpere_seeds() -> Result<Vec<Input>> {
     Ok(vec![seed, minimal])
 }
 
-/// What the keyframe reader needs besides its folder: the setup and beam
-/// stamps of the St Pere navigation fixture, and a seed folder of three
-/// keyframes expanded from the committed bands.
+/// A seed folder of three keyframes expanded from the committed bands,
+/// with the St Pere navigation logs cut to the beam stamps they need (the
+/// reader takes the setup and the beam times from those logs).
 struct KeyframeContext {
-    setup: SonarSetup,
-    stamps: Vec<BeamStamp>,
     seed: Input,
 }
 
@@ -420,37 +420,30 @@ fn keyframe_context() -> Result<&'static KeyframeContext, String> {
 }
 
 fn load_keyframe_context() -> Result<KeyframeContext> {
-    let logs =
-        echofield_datasets::stpere::read_stpere_dir(&repo_root().join("datasets/stpere-marina"))?;
-    let setup = logs
-        .sonar_setup
-        .context("the St Pere fixture has no _SETUP.log")?;
+    use echofield_datasets::stpere::keyframes::KEYFRAME_CSV;
+    use echofield_datasets::stpere::point_bands::{ST_PERE_SETUP, expand_point_bands};
     let dir = tempfile::tempdir()?;
     let sonar = repo_root().join("datasets/stpere-marina-sonar");
-    echofield_datasets::stpere::point_bands::expand_point_bands(
+    expand_point_bands(
         &sonar.join("bands.csv"),
-        &sonar.join(echofield_datasets::stpere::keyframes::KEYFRAME_CSV),
-        &setup,
+        &sonar.join(KEYFRAME_CSV),
+        &ST_PERE_SETUP,
         dir.path(),
     )?;
-    let csv = std::fs::read(
-        dir.path()
-            .join(echofield_datasets::stpere::keyframes::KEYFRAME_CSV),
-    )?;
-    let mut seed = Input::single(
-        echofield_datasets::stpere::keyframes::KEYFRAME_CSV,
-        first_lines(&csv, 4),
-    );
+    let csv = std::fs::read(dir.path().join(KEYFRAME_CSV))?;
+    // Keyframe 3 ends 52 s after the first beam stamp, at about 0.07 s per
+    // beam.
+    let mut seed = stpere_logs(800);
+    seed.files.push((KEYFRAME_CSV.into(), first_lines(&csv, 4)));
     for k in 1..=3 {
         let name = format!("pclKeyFrame{k}.pcd");
         seed.files
             .push((name.clone(), std::fs::read(dir.path().join(&name))?));
     }
-    Ok(KeyframeContext {
-        setup,
-        stamps: logs.beam_stamps,
-        seed,
-    })
+    let check = tempfile::tempdir()?;
+    seed.write_to(check.path())?;
+    read_keyframe_folder(check.path()).map_err(anyhow::Error::msg)?;
+    Ok(KeyframeContext { seed })
 }
 
 fn keyframe_seeds() -> Result<Vec<Input>> {
@@ -458,16 +451,16 @@ fn keyframe_seeds() -> Result<Vec<Input>> {
     Ok(vec![context.seed.clone()])
 }
 
+/// The navigation logs and keyframes of one folder, read as `echofield
+/// convert stpere DIR --keyframes DIR` does.
+fn read_keyframe_folder(dir: &Path) -> Result<(), String> {
+    echofield_datasets::stpere::read_stpere_with_keyframes(dir, dir, SweepTiming::AngleIncreasing)
+        .map(drop)
+        .map_err(|e| error_chain(&e))
+}
+
 fn parse_keyframes(dir: &Path) -> Result<(), String> {
-    let context = keyframe_context()?;
-    echofield_datasets::stpere::keyframes::read_keyframes(
-        dir,
-        &context.setup,
-        &context.stamps,
-        SweepTiming::AngleIncreasing,
-    )
-    .map(drop)
-    .map_err(|e| error_chain(&e))
+    read_keyframe_folder(dir)
 }
 
 const PING360_LOGS: [&str; 3] = [
