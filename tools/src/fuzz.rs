@@ -17,7 +17,9 @@
 //! and the target stops after [`MAX_HANGS`] hangs so that stuck threads do
 //! not eat the machine). Panicking and hanging inputs are saved under
 //! `findings/<target>/<kind>-<n>/`. An input that aborts the whole process
-//! (an allocation failure) is left in `findings/<target>/current/`.
+//! (an allocation failure) is left in `findings/<target>/current/`; the
+//! next run finds the marker the dead run left, moves that input to
+//! `findings/<target>/abort-<n>/` and reports it.
 //!
 //! Everything is seeded: the same seed and number of inputs give the same
 //! inputs. Runs bounded by time (`--seconds`) differ only in how many
@@ -136,6 +138,9 @@ pub struct FuzzReport {
     pub findings: Vec<Finding>,
     /// Up to a few distinct error messages, to eyeball their quality.
     pub sample_errors: Vec<String>,
+    /// The input an earlier run died on (it aborted the process), kept
+    /// from `current/` when this run started.
+    pub aborted_previous_run: Option<PathBuf>,
 }
 
 impl FuzzReport {
@@ -263,6 +268,12 @@ pub fn fuzz_target(target: Target, options: &FuzzOptions) -> anyhow::Result<Fuzz
         (None, None) => std::env::temp_dir(),
     };
     std::fs::create_dir_all(&scratch_root)?;
+    let aborted_previous_run = match &options.findings_dir {
+        Some(_) => keep_input_of_aborted_run(&scratch_root)?,
+        None => None,
+    };
+    let marker = scratch_root.join(RUNNING_MARKER);
+    std::fs::write(&marker, b"an echofield-fuzz run is using this folder\n")?;
     let mut workers_started = 0usize;
     let mut scratch = || {
         workers_started += 1;
@@ -275,6 +286,7 @@ pub fn fuzz_target(target: Target, options: &FuzzOptions) -> anyhow::Result<Fuzz
     let mut worker = Worker::spawn(&target, scratch());
     let mut report = FuzzReport {
         target: target.name.to_string(),
+        aborted_previous_run,
         ..FuzzReport::default()
     };
     let start = Instant::now();
@@ -344,8 +356,37 @@ pub fn fuzz_target(target: Target, options: &FuzzOptions) -> anyhow::Result<Fuzz
     }
     report.seconds = start.elapsed().as_secs_f64();
     drop(worker);
+    let _ = std::fs::remove_file(&marker);
     drop(temporary);
     Ok(report)
+}
+
+/// Left in a target's folder while a run uses it: found at the start of
+/// the next run, it means the last one died (an allocation failure aborts
+/// the process, past any `catch_unwind`).
+const RUNNING_MARKER: &str = "RUNNING";
+
+/// When the last run in `scratch_root` died, moves the input it was
+/// parsing (`current/`) to `abort-<n>/` and returns that folder.
+fn keep_input_of_aborted_run(scratch_root: &Path) -> anyhow::Result<Option<PathBuf>> {
+    let current = scratch_root.join("current");
+    if !(scratch_root.join(RUNNING_MARKER).exists() && current.is_dir()) {
+        return Ok(None);
+    }
+    let mut n = 0;
+    let kept = loop {
+        let candidate = scratch_root.join(format!("abort-{n}"));
+        if !candidate.exists() {
+            break candidate;
+        }
+        n += 1;
+    };
+    std::fs::rename(&current, &kept)?;
+    std::fs::write(
+        kept.join("FINDING.txt"),
+        "abort: the fuzz run died while parsing this input (allocation failure or other abort)\n",
+    )?;
+    Ok(Some(kept))
 }
 
 /// Two error messages of the same kind: equal once digits are dropped.
@@ -413,6 +454,27 @@ mod tests {
                 Ok(())
             }),
         }
+    }
+
+    #[test]
+    fn the_input_of_an_aborted_run_is_kept_and_reported() {
+        let findings = tempfile::tempdir().unwrap();
+        let folder = findings.path().join("planted");
+        std::fs::create_dir_all(folder.join("current")).unwrap();
+        std::fs::write(folder.join("current/x.txt"), b"killer").unwrap();
+        std::fs::write(folder.join(RUNNING_MARKER), b"").unwrap();
+        let options = FuzzOptions {
+            max_inputs: Some(1),
+            findings_dir: Some(findings.path().to_path_buf()),
+            ..FuzzOptions::default()
+        };
+        let report = fuzz_target(planted_bugs(), &options).unwrap();
+        let kept = report.aborted_previous_run.unwrap();
+        assert_eq!(std::fs::read(kept.join("x.txt")).unwrap(), b"killer");
+        // A run that ends normally leaves no marker behind.
+        assert!(!folder.join(RUNNING_MARKER).exists());
+        let again = fuzz_target(planted_bugs(), &options).unwrap();
+        assert!(again.aborted_previous_run.is_none());
     }
 
     #[test]

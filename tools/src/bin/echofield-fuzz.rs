@@ -119,6 +119,14 @@ fn run(cli: &Cli) -> anyhow::Result<bool> {
     let mut rows = Vec::new();
     for target in targets {
         let report = fuzz_target(target, &options)?;
+        if let Some(kept) = &report.aborted_previous_run {
+            println!(
+                "{}: the previous run died (abort) on the input now in {}",
+                report.target,
+                kept.display()
+            );
+            clean = false;
+        }
         println!("{}", report.summary());
         for finding in &report.findings {
             println!(
