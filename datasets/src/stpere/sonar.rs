@@ -84,7 +84,7 @@ pub(crate) fn parse_setup(log: &TextLog) -> Result<SonarSetup, DatasetError> {
         ));
     }
     let steps = std::f64::consts::TAU / setup.step_rad;
-    if !(steps <= MAX_SETUP_COUNT) {
+    if steps > MAX_SETUP_COUNT {
         return Err(log.error(
             line.line,
             "column 3 (step)",
