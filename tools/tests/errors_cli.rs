@@ -122,3 +122,23 @@ fn eval_refuses_distances_and_time_differences_that_are_not_positive() {
     );
     assert!(String::from_utf8_lossy(&run.stdout).contains("rmse 0.000000"));
 }
+
+/// The pipeline's errors that wrap another (a frontend stage's, the pose
+/// graph's, the solver's) print its text once in a `{:#}` chain.
+#[test]
+fn slam_errors_print_the_inner_message_once() {
+    use echofield::slam::SlamError;
+    let frontend = SlamError::frontend(
+        "dead reckoning",
+        echofield_frontend::FrontendError::InvalidInput {
+            record: "DVL sample 3".into(),
+            field: "velocity".into(),
+            message: "not finite".into(),
+        },
+    );
+    let graph = SlamError::from(echofield_graph::GraphError::DuplicateNode { id: 7 });
+    for (err, inner) in [(frontend, "DVL sample 3"), (graph, "duplicate node id 7")] {
+        let chain = format!("{:#}", anyhow::Error::new(err));
+        assert_eq!(chain.matches(inner).count(), 1, "{chain}");
+    }
+}
