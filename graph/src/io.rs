@@ -5,7 +5,12 @@
 //! - [`trajectory`]: TUM, CSV and KITTI-style trajectory rows.
 //!
 //! Readers never panic on bad input: every problem is an [`IoError`] naming the
-//! file, the line (1-based) and the field.
+//! file, the line (1-based) and the field. Text must be UTF-8 (an invalid
+//! byte is reported with its line, column and byte offset); a leading
+//! byte-order mark is skipped. Values must be finite and within
+//! [`MAX_ABS_POSITION_M`], [`MAX_ABS_ANGLE_RAD`] and
+//! [`MAX_ABS_INFORMATION`]. A file whose last line has no line end is
+//! refused when that line is a record: its last value may have been cut.
 
 pub mod g2o;
 pub mod toro;
@@ -17,6 +22,7 @@ mod lines;
 
 pub use error::IoError;
 pub use g2o::write_g2o;
+pub use lines::{MAX_ABS_ANGLE_RAD, MAX_ABS_INFORMATION, MAX_ABS_POSITION_M};
 pub use trajectory::{
     TrajectoryPose, graph_trajectory, read_tum, write_csv, write_kitti, write_tum,
 };
@@ -41,12 +47,16 @@ pub fn read_pose_graph(path: &Path) -> Result<PoseGraph, IoError> {
     parse_pose_graph(&read_text(path)?, path)
 }
 
-/// Reads a whole text file, naming it in the error.
-pub(crate) fn read_text(path: &Path) -> Result<String, IoError> {
-    std::fs::read_to_string(path).map_err(|source| IoError::Io {
+/// Reads a whole UTF-8 text file, naming it in the error: an invalid
+/// UTF-8 sequence is an [`IoError::Parse`] naming its line, column and
+/// byte offset. A leading byte-order mark is kept in the returned text;
+/// every parser of this module skips it.
+pub fn read_text(path: &Path) -> Result<String, IoError> {
+    let bytes = std::fs::read(path).map_err(|source| IoError::Io {
         path: path.to_path_buf(),
         source,
-    })
+    })?;
+    lines::decode_utf8(bytes, path)
 }
 
 /// Parses pose-graph text; `path` is only used in error messages.

@@ -142,3 +142,83 @@ proptest! {
         }
     }
 }
+
+// Issue 35: the text-input findings of the bad-input audit, each with its
+// minimal input.
+
+#[test]
+fn invalid_utf8_names_file_line_and_byte_offset() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("latin1.g2o");
+    // Line 2 holds a Latin-1 `é` (0xE9) where the id should be.
+    let mut bytes = b"VERTEX_SE2 0 0 0 0\nVERTEX_SE2 ".to_vec();
+    bytes.push(0xE9);
+    bytes.extend_from_slice(b" 1 0 0\n");
+    std::fs::write(&path, bytes).unwrap();
+    let err = read_pose_graph(&path).unwrap_err();
+    let message = err.to_string();
+    assert_eq!(err.line(), Some(2), "{message}");
+    assert!(
+        message.contains("latin1.g2o:2")
+            && message.contains("UTF-8")
+            && message.contains("byte 30")
+            && message.contains("column 12"),
+        "{message}"
+    );
+}
+
+#[test]
+fn a_leading_byte_order_mark_is_skipped() {
+    let text = format!("\u{feff}{GOOD}");
+    let graph = parse_pose_graph(&text, Path::new("bom.g2o")).unwrap();
+    assert_eq!((graph.node_count(), graph.edge_count()), (3, 2));
+    let toro = "\u{feff}VERTEX2 0 0 0 0\nVERTEX2 1 1 0 0\nEDGE2 0 1 1 0 0 10 1 20 30 2 3\n";
+    assert_eq!(
+        parse_pose_graph(toro, Path::new("bom.graph"))
+            .unwrap()
+            .edge_count(),
+        1
+    );
+}
+
+#[test]
+fn a_last_number_cut_off_is_an_error_naming_line_and_field() {
+    // The file was cut inside its last number: `1000` became `10`, and the
+    // line end is gone. Every field is there, so only the missing line end
+    // tells.
+    let cut = GOOD.trim_end().strip_suffix("00").unwrap();
+    let message = error_for(cut, 5, "`I33`");
+    assert!(message.contains("cut off"), "{message}");
+    // A FIX line cut the same way.
+    let fix = format!("{GOOD}FIX 1");
+    let message = error_for(&fix, 6, "`id`");
+    assert!(message.contains("cut off"), "{message}");
+    // The same file with its line end is fine.
+    assert!(parse_pose_graph(&format!("{cut}\n"), Path::new("ok.g2o")).is_ok());
+}
+
+#[test]
+fn absurd_values_are_errors_naming_the_field() {
+    let text = GOOD.replace("VERTEX_SE2 1 1 0 0.1", "VERTEX_SE2 1 1e308 0 0.1");
+    let message = error_for(&text, 2, "`x`");
+    assert!(message.contains("out of range"), "{message}");
+    let text = GOOD.replace("VERTEX_SE2 2 2 0 0.2", "VERTEX_SE2 2 2 0 1e300");
+    error_for(&text, 3, "`theta`");
+    let text = GOOD.replace("0 1000\nEDGE_SE2 1 2", "0 1e300\nEDGE_SE2 1 2");
+    error_for(&text, 4, "`I33`");
+}
+
+#[test]
+fn graph_errors_print_their_message_once() {
+    let text = GOOD.replace("VERTEX_SE2 2 2 0 0.2", "VERTEX_SE2 1 2 0 0.2");
+    let err = parse_pose_graph(&text, Path::new("dup.g2o")).unwrap_err();
+    // The whole chain, as the CLI prints it with `{:#}`.
+    let mut chain = err.to_string();
+    let mut source = std::error::Error::source(&err);
+    while let Some(s) = source {
+        chain.push_str(&format!(": {s}"));
+        source = s.source();
+    }
+    assert_eq!(chain.matches("duplicate node id 1").count(), 1, "{chain}");
+    assert!(chain.starts_with("dup.g2o:3:"), "{chain}");
+}

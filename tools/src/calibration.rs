@@ -81,8 +81,7 @@ impl CalibrateSettings {
         let Some(path) = path else {
             return Ok(Self::default());
         };
-        let text = std::fs::read_to_string(path)
-            .with_context(|| format!("cannot read config {}", path.display()))?;
+        let text = crate::config_file::read_config_text(path)?;
         Self::from_toml_str(&text).with_context(|| format!("in config {}", path.display()))
     }
 }

@@ -40,6 +40,18 @@ pub struct ConfigFileError {
     pub message: String,
 }
 
+/// Reads a config file as text: an I/O error names the file, invalid
+/// UTF-8 names the file, line, column and byte offset
+/// ([`echofield_graph::io::read_text`]), and a leading byte-order mark is
+/// dropped.
+pub fn read_config_text(path: &std::path::Path) -> Result<String, echofield_graph::io::IoError> {
+    let text = echofield_graph::io::read_text(path)?;
+    Ok(match text.strip_prefix('\u{feff}') {
+        Some(rest) => rest.to_string(),
+        None => text,
+    })
+}
+
 /// `text` (TOML) laid over `defaults` (see the module doc).
 pub fn from_toml_over<T: Serialize + DeserializeOwned>(
     text: &str,
@@ -54,9 +66,20 @@ pub fn from_toml_over<T: Serialize + DeserializeOwned>(
         message: e.to_string(),
     })?;
     lay_over(&mut merged, user);
-    serde_path_to_error::deserialize(toml::Value::Table(merged)).map_err(|e| ConfigFileError {
-        path: e.path().to_string(),
-        message: e.into_inner().to_string().trim_end().to_string(),
+    serde_path_to_error::deserialize(toml::Value::Table(merged)).map_err(|e| {
+        let path = e.path().to_string();
+        let message = e.into_inner().to_string();
+        // toml ends some messages with a line naming the key again
+        // (`in `loops.min_window``); the path is already given, once.
+        let message = message.trim_end();
+        let message = match message.rsplit_once('\n') {
+            Some((head, tail)) if tail.trim_start().starts_with("in `") => head.trim_end(),
+            _ => message,
+        };
+        ConfigFileError {
+            path,
+            message: message.to_string(),
+        }
     })
 }
 
@@ -143,6 +166,22 @@ mod tests {
     }
 
     #[test]
+    fn config_text_drops_a_bom_and_names_invalid_utf8() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("c.toml");
+        std::fs::write(&path, b"\xEF\xBB\xBF[inner]\nb = 5.0\n").unwrap();
+        let text = read_config_text(&path).unwrap();
+        let c: Outer = from_toml_over(&text, &defaults()).unwrap();
+        assert_eq!(c.inner.b, 5.0);
+        std::fs::write(&path, b"[inner]\nb = \"\xC3\"\n").unwrap();
+        let message = read_config_text(&path).unwrap_err().to_string();
+        assert!(
+            message.contains("c.toml:2") && message.contains("byte 13"),
+            "{message}"
+        );
+    }
+
+    #[test]
     fn an_empty_file_gives_the_defaults() {
         assert_eq!(from_toml_over("", &defaults()).unwrap(), defaults());
     }
@@ -170,6 +209,8 @@ mod tests {
         assert_eq!(err.path, "inner.c");
         let err = from_toml_over::<Outer>("[inner]\na = \"no\"\n", &defaults()).unwrap_err();
         assert_eq!(err.path, "inner.a");
+        // The key is named once, by the path, not again in the message.
+        assert!(!err.message.contains("inner.a"), "{err}");
         let err = from_toml_over::<Outer>("[inner\n", &defaults()).unwrap_err();
         assert_eq!(err.path, "(document)");
         assert!(err.message.contains("line 1"), "{err}");

@@ -97,13 +97,20 @@ pub struct AteStats {
     pub alignment: Se2,
 }
 
-/// ATE of `estimate` against `reference`.
+/// ATE of `estimate` against `reference`. Errors: no associated pair, a
+/// `max_time_diff_s` that is not a positive number, or statistics that are
+/// not finite.
 pub fn ate(
     estimate: &[TrajectoryPose],
     reference: &[TrajectoryPose],
     alignment: Alignment,
     max_time_diff_s: f64,
 ) -> Result<AteStats> {
+    if !(max_time_diff_s.is_finite() && max_time_diff_s > 0.0) {
+        bail!(
+            "the largest time difference must be a positive number of seconds, got {max_time_diff_s}"
+        );
+    }
     let pairs = associate(estimate, reference, max_time_diff_s);
     if pairs.is_empty() {
         bail!(
@@ -132,6 +139,17 @@ pub fn ate(
         .collect();
     let n = errors.len() as f64;
     let rmse_m = (errors.iter().map(|e| e * e).sum::<f64>() / n).sqrt();
+    // Never report NaN or infinity as a result: the readers bound every
+    // value, so this only fires on trajectories built in memory.
+    if let Some(k) = errors.iter().position(|e| !e.is_finite()) {
+        let (i, j) = pairs[k];
+        bail!(
+            "the position error of estimate pose {i} against reference pose {j} is not finite              (positions too large?)"
+        );
+    }
+    if !rmse_m.is_finite() {
+        bail!("the ATE is not finite: the position errors are too large to square");
+    }
     let mean_m = errors.iter().sum::<f64>() / n;
     errors.sort_by(f64::total_cmp);
     let median_m = if errors.len() % 2 == 1 {
@@ -160,8 +178,8 @@ pub struct RpeStats {
     pub rotation_rmse_deg: f64,
 }
 
-/// RPE for each distance in `distances_m`; distances longer than the path
-/// are left out.
+/// RPE for each distance in `distances_m`; distances longer than the path,
+/// and distances that are not positive and finite, are left out.
 pub fn rpe(
     estimate: &[TrajectoryPose],
     reference: &[TrajectoryPose],
@@ -173,7 +191,9 @@ pub fn rpe(
     let refs: Vec<Se2> = pairs.iter().map(|&(_, j)| reference[j].pose).collect();
     let travelled = cumulative_distance(&refs);
     let mut out = Vec::new();
-    for &d in distances_m {
+    // A distance that is not positive has no relative motion to measure
+    // (and would divide by zero in the percentage).
+    for &d in distances_m.iter().filter(|d| d.is_finite() && **d > 0.0) {
         let (mut t2, mut r2, mut count) = (0.0, 0.0, 0usize);
         for i in 0..refs.len() {
             let target = travelled[i] + d;

@@ -7,6 +7,7 @@
 pub mod calibration;
 pub mod config_file;
 pub mod eval;
+pub mod fuzz;
 pub mod matching;
 pub mod output;
 pub mod plots;

@@ -75,8 +75,7 @@ impl MatchingConfig {
     /// ([`crate::config_file::from_toml_over`]: a section set in part keeps
     /// its other defaults); unknown keys are errors naming the key.
     pub fn from_toml_file(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path)
-            .with_context(|| format!("cannot read config {}", path.display()))?;
+        let text = crate::config_file::read_config_text(path)?;
         let config = crate::config_file::from_toml_over(&text, &Self::default())
             .with_context(|| format!("in config {}", path.display()))?;
         config

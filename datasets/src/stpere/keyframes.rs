@@ -354,13 +354,16 @@ fn grid_cell(
 fn read_pcd(path: &Path) -> Result<Vec<Point>, DatasetError> {
     let bytes = std::fs::read(path).map_err(|e| DatasetError::io(path, e))?;
     let text = std::str::from_utf8(&bytes).map_err(|e| {
-        let line = bytes[..e.valid_up_to()]
-            .iter()
-            .filter(|&&b| b == b'\n')
-            .count()
-            + 1;
-        DatasetError::parse(path, format!("line {line}"), "text", "not valid UTF-8")
+        let offset = e.valid_up_to();
+        let line = bytes[..offset].iter().filter(|&&b| b == b'\n').count() + 1;
+        DatasetError::parse(
+            path,
+            format!("line {line}"),
+            "text",
+            format!("invalid UTF-8 at byte {offset}: a PCD header and ASCII data are expected"),
+        )
     })?;
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     let mut declared_points: Option<usize> = None;
     let mut lines = text.lines().enumerate().map(|(i, l)| (i + 1, l.trim()));
     let err = |line: usize, field: &str, message: String| {
@@ -419,7 +422,10 @@ fn read_pcd(path: &Path) -> Result<Vec<Point>, DatasetError> {
         path: path.to_path_buf(),
         message: "the header has no POINTS line".into(),
     })?;
-    let mut points = Vec::with_capacity(declared);
+    // The declared count is only trusted as far as the file could hold it
+    // (a point takes at least six bytes): a corrupted POINTS line must not
+    // reserve memory the data cannot fill.
+    let mut points = Vec::with_capacity(declared.min(bytes.len() / 6));
     for (line, content) in lines {
         if content.is_empty() {
             continue;
@@ -598,6 +604,55 @@ mod tests {
             assert!(err.contains("pclKeyFrame1.pcd"), "{err}");
             assert!(err.contains(record) && err.contains(field), "{err}");
         }
+    }
+
+    // Issue 35: a POINTS count of u64::MAX made the reader reserve memory
+    // for that many points (a capacity-overflow panic); invalid UTF-8 gave
+    // no byte offset; a byte-order mark hid the first header key.
+    #[test]
+    fn a_huge_point_count_invalid_utf8_and_a_bom() {
+        let h = std::f64::consts::FRAC_1_SQRT_2;
+        let good = pcd(&[(h, h)]);
+        let huge = good.replace("POINTS 1", "POINTS 18446744073709551615");
+        let err = error_of("pclKeyFrame1.pcd", &huge);
+        assert!(
+            err.contains("declares") && err.contains("truncated"),
+            "{err}"
+        );
+        let mut latin1 = good.clone().into_bytes();
+        let at = good.find("0.7071").unwrap();
+        latin1[at] = 0xB0;
+        let dir = folder();
+        std::fs::write(dir.path().join("pclKeyFrame1.pcd"), latin1).unwrap();
+        let err = read_keyframes(
+            dir.path(),
+            &setup(),
+            &stamps(20),
+            SweepTiming::AngleIncreasing,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            err.contains("line 12") && err.contains(&format!("byte {at}")),
+            "{err}"
+        );
+        let dir = folder();
+        let bom = format!("\u{feff}{}", good.replace("# .PCD v0.7\n", ""));
+        std::fs::write(dir.path().join("pclKeyFrame1.pcd"), bom).unwrap();
+        let bad_fields = format!(
+            "\u{feff}{}",
+            good.replace("# .PCD v0.7\nVERSION 0.7\n", "")
+                .replace("FIELDS x y z", "FIELDS x y")
+        );
+        read_keyframes(
+            dir.path(),
+            &setup(),
+            &stamps(20),
+            SweepTiming::AngleIncreasing,
+        )
+        .unwrap();
+        let err = error_of("pclKeyFrame1.pcd", &bad_fields);
+        assert!(err.contains("FIELDS"), "{err}");
     }
 
     #[test]

@@ -70,8 +70,36 @@ pub(crate) fn parse_setup(log: &TextLog) -> Result<SonarSetup, DatasetError> {
             ));
         }
     }
+    // Every beam and every rotation is allocated from these numbers: a
+    // corrupted setup must not ask for billions of bins or steps.
+    let bins = setup.range_m / setup.bin_size_m;
+    if !(bins.round() >= 1.0 && bins <= MAX_SETUP_COUNT) {
+        return Err(log.error(
+            line.line,
+            "column 2 (bin size)",
+            format!(
+                "range {} m / bin size {} m gives {bins:.0} bins per beam, expected 1 to {MAX_SETUP_COUNT}",
+                setup.range_m, setup.bin_size_m
+            ),
+        ));
+    }
+    let steps = std::f64::consts::TAU / setup.step_rad;
+    if steps > MAX_SETUP_COUNT {
+        return Err(log.error(
+            line.line,
+            "column 3 (step)",
+            format!(
+                "a step of {} rad gives {steps:.0} beams per turn, more than {MAX_SETUP_COUNT}",
+                setup.step_rad
+            ),
+        ));
+    }
     Ok(setup)
 }
+
+/// Most bins per beam and beams per turn a setup may give (sonar heads
+/// have a few hundred to a few thousand of either).
+const MAX_SETUP_COUNT: f64 = 100_000.0;
 
 pub(crate) fn parse_beam_stamps(
     log: &TextLog,
@@ -164,6 +192,27 @@ mod tests {
     fn setup_line_of_the_mission() {
         let s = parse_setup(&TextLog::from_bytes("s.log", b"50 0.1 0.03141592653590")).unwrap();
         assert_eq!((s.range_m, s.bin_size_m, s.bins()), (50.0, 0.1, 500));
+    }
+
+    // Issue 35 (fuzzing): a setup of 50 m in 1e-9 m bins asked the
+    // keyframe reader for 5e10 bins per beam (an allocation failure that
+    // aborts the process); a step of 1e-300 rad for as many beams per turn.
+    #[test]
+    fn setups_giving_absurd_bin_or_step_counts_are_errors() {
+        for (text, field) in [
+            (&b"50 1e-9 0.0314159"[..], "column 2 (bin size)"),
+            (b"1e300 0.1 0.0314159", "column 2 (bin size)"),
+            (b"0.01 0.1 0.0314159", "column 2 (bin size)"),
+            (b"50 0.1 1e-300", "column 3 (step)"),
+        ] {
+            let err = parse_setup(&TextLog::from_bytes("s.log", text))
+                .unwrap_err()
+                .to_string();
+            assert!(
+                err.contains("s.log: line 1") && err.contains(field),
+                "{err}"
+            );
+        }
     }
 
     #[test]

@@ -5,7 +5,7 @@
 //! field must be ASCII. Lines end in CRLF (a final line may lack it); lines
 //! starting with `%` and blank lines are skipped; fields are separated by any
 //! run of spaces or tabs, so an empty `[idSensor]` column between two tabs
-//! disappears.
+//! disappears. A leading UTF-8 byte-order mark is skipped.
 
 use crate::error::DatasetError;
 use std::path::{Path, PathBuf};
@@ -64,11 +64,16 @@ impl TextLog {
         }
     }
 
-    /// The data lines in file order.
+    /// The data lines in file order (a leading UTF-8 byte-order mark is
+    /// skipped).
     pub fn data_lines(&self) -> impl Iterator<Item = DataLine<'_>> {
-        let total = self.bytes.len();
+        let bytes = self
+            .bytes
+            .strip_prefix(b"\xEF\xBB\xBF")
+            .unwrap_or(&self.bytes);
+        let total = bytes.len();
         let mut start = 0usize;
-        self.bytes
+        bytes
             .split(|&b| b == b'\n')
             .enumerate()
             .filter_map(move |(index, raw)| {
@@ -276,6 +281,14 @@ mod tests {
         assert!(!lines[0].unterminated);
         assert_eq!(lines[1].line, 4);
         assert!(lines[1].unterminated);
+    }
+
+    #[test]
+    fn a_leading_byte_order_mark_is_skipped() {
+        let log = TextLog::from_bytes("x.log", b"\xEF\xBB\xBF% head\r\n1 2\r\n");
+        let lines: Vec<_> = log.data_lines().collect();
+        assert_eq!(lines.len(), 1);
+        assert_eq!((lines[0].line, lines[0].fields.len()), (2, 2));
     }
 
     #[test]

@@ -27,12 +27,13 @@ pub enum IoError {
     },
     /// A record that parses but does not fit the graph (duplicate vertex,
     /// edge to a missing vertex, information not positive definite).
-    #[error("{}:{line}: {source}", path.display())]
+    // `error` is part of this message and deliberately not a `source`:
+    // an error chain (`{:#}`) would print its text a second time.
+    #[error("{}:{line}: {error}", path.display())]
     Graph {
         path: PathBuf,
         line: usize,
-        #[source]
-        source: GraphError,
+        error: GraphError,
     },
 }
 
@@ -51,11 +52,11 @@ impl IoError {
         }
     }
 
-    pub(crate) fn graph(path: &Path, line: usize, source: GraphError) -> Self {
+    pub(crate) fn graph(path: &Path, line: usize, error: GraphError) -> Self {
         IoError::Graph {
             path: path.to_path_buf(),
             line,
-            source,
+            error,
         }
     }
 

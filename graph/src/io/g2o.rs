@@ -13,6 +13,7 @@
 
 use super::IoError;
 use super::build::RawGraph;
+use super::lines::{MAX_ABS_ANGLE_RAD, MAX_ABS_INFORMATION, MAX_ABS_POSITION_M};
 use super::lines::{Record, records};
 use crate::{Edge, EdgeKind, NodeId, PoseGraph, Se2};
 use nalgebra::Matrix3;
@@ -82,6 +83,7 @@ pub fn parse_g2o(text: &str, path: &Path) -> Result<PoseGraph, IoError> {
                 for index in 1..record.tokens.len() {
                     raw.fixed.push((record.line, record.id(path, index, "id")?));
                 }
+                record.expect_terminated(path, "id")?;
             }
             other => {
                 return Err(IoError::parse(
@@ -160,10 +162,41 @@ pub(crate) fn pose_fields(
     names: &[&str],
 ) -> Result<Se2, IoError> {
     let names = &names[first - 1..first + 2];
-    let x = record.f64(path, first, names[0])?;
-    let y = record.f64(path, first + 1, names[1])?;
-    let theta = record.f64(path, first + 2, names[2])?;
+    let position = |k: usize| {
+        record.bounded(
+            path,
+            first + k,
+            names[k],
+            MAX_ABS_POSITION_M,
+            "a position in metres",
+        )
+    };
+    let (x, y) = (position(0)?, position(1)?);
+    let theta = record.bounded(
+        path,
+        first + 2,
+        names[2],
+        MAX_ABS_ANGLE_RAD,
+        "an angle in radians",
+    )?;
     Ok(Se2::new(x, y, theta))
+}
+
+/// One entry of an information matrix (finite, within
+/// [`MAX_ABS_INFORMATION`]).
+pub(crate) fn information_entry(
+    record: &Record,
+    path: &Path,
+    index: usize,
+    name: &str,
+) -> Result<f64, IoError> {
+    record.bounded(
+        path,
+        index,
+        name,
+        MAX_ABS_INFORMATION,
+        "an information-matrix entry",
+    )
 }
 
 /// An information matrix from its upper triangle `I11 I12 I13 I22 I23 I33`.
@@ -175,7 +208,7 @@ fn upper_triangle(
 ) -> Result<Matrix3<f64>, IoError> {
     let mut v = [0.0; 6];
     for (k, value) in v.iter_mut().enumerate() {
-        *value = record.f64(path, first + k, names[k])?;
+        *value = information_entry(record, path, first + k, names[k])?;
     }
     Ok(Matrix3::new(
         v[0], v[1], v[2], v[1], v[3], v[4], v[2], v[4], v[5],

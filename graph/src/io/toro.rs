@@ -9,7 +9,7 @@
 
 use super::IoError;
 use super::build::RawGraph;
-use super::g2o::{pose_fields, relative_kind};
+use super::g2o::{information_entry, pose_fields, relative_kind};
 use super::lines::records;
 use crate::{Edge, EdgeKind, PoseGraph};
 use nalgebra::Matrix3;
@@ -47,7 +47,7 @@ pub fn parse_toro(text: &str, path: &Path) -> Result<PoseGraph, IoError> {
                 let measurement = pose_fields(&record, path, 3, &EDGE_FIELDS)?;
                 let mut v = [0.0; 6];
                 for (k, value) in v.iter_mut().enumerate() {
-                    *value = record.f64(path, 6 + k, EDGE_FIELDS[5 + k])?;
+                    *value = information_entry(&record, path, 6 + k, EDGE_FIELDS[5 + k])?;
                 }
                 let [xx, xy, yy, tt, xt, yt] = v;
                 let information = Matrix3::new(xx, xy, xt, xy, yy, yt, xt, yt, tt);

@@ -8,7 +8,7 @@
 //!   numbers per row, no stamp (the KITTI odometry ground-truth layout).
 
 use super::IoError;
-use super::lines::records;
+use super::lines::{MAX_ABS_POSITION_M, records};
 use crate::{PoseGraph, Se2, wrap_angle};
 use std::io::Write;
 use std::path::Path;
@@ -81,9 +81,19 @@ pub fn write_kitti(poses: &[TrajectoryPose], w: &mut dyn Write) -> std::io::Resu
     Ok(())
 }
 
+/// Largest magnitude of a TUM time stamp, seconds (the year 5138): larger
+/// values are corrupted, or stamps in nanoseconds.
+pub const MAX_ABS_STAMP_S: f64 = 1e11;
+/// Largest magnitude of a TUM quaternion component (they are unit
+/// quaternions; a few units leaves room for unnormalised writers).
+pub const MAX_ABS_QUATERNION: f64 = 1e3;
+
 /// Reads a TUM trajectory. Lines starting with `#` are comments. The 3D
 /// rotation is reduced to its yaw; stamps must be finite and strictly
-/// increasing.
+/// increasing; positions within [`MAX_ABS_POSITION_M`], stamps within
+/// [`MAX_ABS_STAMP_S`] and quaternion components within
+/// [`MAX_ABS_QUATERNION`], so that no evaluation overflows. Errors name the
+/// file, line and field.
 pub fn read_tum(path: &Path) -> Result<Vec<TrajectoryPose>, IoError> {
     parse_tum(&super::read_text(path)?, path)
 }
@@ -112,8 +122,14 @@ pub fn parse_tum(text: &str, path: &Path) -> Result<Vec<TrajectoryPose>, IoError
         }
         let mut v = [0.0; 8];
         for (k, value) in v.iter_mut().enumerate() {
-            *value = record.f64(path, k, FIELDS[k])?;
+            let (limit, what) = match k {
+                0 => (MAX_ABS_STAMP_S, "a time stamp in seconds"),
+                1..=3 => (MAX_ABS_POSITION_M, "a position in metres"),
+                _ => (MAX_ABS_QUATERNION, "a quaternion component"),
+            };
+            *value = record.bounded(path, k, FIELDS[k], limit, what)?;
         }
+        record.expect_terminated(path, "qw")?;
         let [stamp_s, x, y, _z, qx, qy, qz, qw] = v;
         let norm = (qx * qx + qy * qy + qz * qz + qw * qw).sqrt();
         if norm < 1e-9 {
@@ -174,6 +190,32 @@ mod tests {
         let err = parse_tum(text, Path::new("t.txt")).unwrap_err();
         assert_eq!(err.line(), Some(2));
         assert!(err.to_string().contains("stamp"), "{err}");
+    }
+
+    // Issue 35: a TUM value of 1e308 gave an ATE of NaN with exit status 0.
+    #[test]
+    fn tum_rejects_absurd_values_naming_line_and_field() {
+        let text = "1.0 0 0 0 0 0 0 1\n2.0 1e308 0 0 0 0 0 1\n";
+        let err = parse_tum(text, Path::new("t.txt")).unwrap_err();
+        let message = err.to_string();
+        assert_eq!(err.line(), Some(2));
+        assert!(
+            message.contains("t.txt:2") && message.contains("`x`") && message.contains("range"),
+            "{message}"
+        );
+        let text = "1e300 0 0 0 0 0 0 1\n";
+        let err = parse_tum(text, Path::new("t.txt")).unwrap_err();
+        assert!(err.to_string().contains("`stamp`"), "{err}");
+    }
+
+    #[test]
+    fn tum_skips_a_bom_and_refuses_a_cut_last_line() {
+        let text = "\u{feff}1.0 0 0 0 0 0 0 1\n2.0 1 0 0 0 0 0 1\n";
+        assert_eq!(parse_tum(text, Path::new("t.txt")).unwrap().len(), 2);
+        let cut = "1.0 0 0 0 0 0 0 1\n2.0 1 0 0 0 0 0.7 0.7";
+        let err = parse_tum(cut, Path::new("t.txt")).unwrap_err();
+        assert_eq!(err.line(), Some(2));
+        assert!(err.to_string().contains("`qw`"), "{err}");
     }
 
     #[test]

@@ -97,8 +97,7 @@ pub fn run(args: Args) -> Result<()> {
 }
 
 fn read_config(path: &Path) -> Result<SimConfig> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let text = echofield::config_file::read_config_text(path)?;
     echofield::config_file::from_toml_over(&text, &SimConfig::default())
         .with_context(|| format!("invalid simulator config {}", path.display()))
 }

@@ -107,8 +107,7 @@ impl SlamConfig {
     /// Reads a TOML file (see [`SlamConfig::from_toml_str`]).
     pub fn from_toml_file(path: &Path) -> anyhow::Result<Self> {
         use anyhow::Context;
-        let text = std::fs::read_to_string(path)
-            .with_context(|| format!("cannot read config {}", path.display()))?;
+        let text = crate::config_file::read_config_text(path)?;
         Self::from_toml_str(&text).with_context(|| format!("in config {}", path.display()))
     }
 

@@ -20,20 +20,19 @@ pub enum SlamError {
     MissingSensor { mission: String, what: String },
     /// A frontend stage failed on the mission's data (bad records, no
     /// complete rotation).
-    #[error("{stage}: {source}")]
-    Frontend {
-        stage: String,
-        #[source]
-        source: FrontendError,
-    },
+    // The inner errors of this and the variants below are part of the
+    // message and deliberately not `source`s: an error chain (`{:#}` in the
+    // CLI) would print their text twice.
+    #[error("{stage}: {error}")]
+    Frontend { stage: String, error: FrontendError },
     /// No rotation of the mission became a node (e.g. every beam lies
     /// outside the span of the navigation).
     #[error("mission `{mission}`: no rotation could become a node: {reason}")]
     NoNodes { mission: String, reason: String },
     #[error("pose graph: {0}")]
-    Graph(#[from] GraphError),
+    Graph(GraphError),
     #[error("optimisation: {0}")]
-    Solve(#[from] SolveError),
+    Solve(SolveError),
     /// An evaluation against ground truth that cannot be computed.
     #[error("evaluation: {0}")]
     Evaluation(String),
@@ -47,10 +46,22 @@ impl SlamError {
         }
     }
 
-    pub fn frontend(stage: impl Into<String>, source: FrontendError) -> Self {
+    pub fn frontend(stage: impl Into<String>, error: FrontendError) -> Self {
         SlamError::Frontend {
             stage: stage.into(),
-            source,
+            error,
         }
+    }
+}
+
+impl From<GraphError> for SlamError {
+    fn from(error: GraphError) -> Self {
+        SlamError::Graph(error)
+    }
+}
+
+impl From<SolveError> for SlamError {
+    fn from(error: SolveError) -> Self {
+        SlamError::Solve(error)
     }
 }

@@ -242,9 +242,9 @@ pub fn write_loops_csv(rows: &[LoopRow], w: &mut dyn Write) -> std::io::Result<(
 /// may differ and unknown columns are ignored); `from`, `to` and `accepted`
 /// are required. Errors name the file, the line (1-based) and the column.
 pub fn read_loops_csv(path: &Path) -> Result<Vec<LoopRow>> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
-    parse_loops_csv(&text, path)
+    // UTF-8 errors name line and byte offset; a byte-order mark is dropped.
+    let text = echofield_graph::io::read_text(path)?;
+    parse_loops_csv(text.strip_prefix('\u{feff}').unwrap_or(&text), path)
 }
 
 /// Parses `loops.csv` text; `path` only names the source in errors.
