@@ -4,7 +4,7 @@ use anyhow::{Context, Result};
 use echofield::output::write_atomic;
 use echofield_backend::{
     Algorithm, Initialisation, OutlierConfig, RobustConfig, RobustKernel, RobustSolveSummary,
-    SolveSummary, SolverConfig, optimize_robust,
+    SolveSummary, SolverConfig, graph_chi2, optimize_robust,
 };
 use echofield_graph::PoseGraph;
 use echofield_graph::io::{read_pose_graph, write_g2o};
@@ -174,12 +174,14 @@ pub fn run(args: Args) -> Result<()> {
         };
         write_atomic(path, |w| Ok(serde_json::to_writer_pretty(&mut *w, &file)?))?;
     }
+    // With --robust the last solve starts from the robust stage's poses;
+    // the χ² that matters to a user is the file's.
     println!(
         "{}: chi2 {:.6} -> {:.6} in {} iterations ({}), {:.3} s",
         args.input.display(),
-        summary.initial_chi2,
+        graph_chi2(&start),
         summary.final_chi2,
-        summary.iterations,
+        summary.iterations + if with_kernel { robust.robust.iterations } else { 0 },
         serde_json::to_value(summary.termination)?
             .as_str()
             .unwrap_or("?"),
