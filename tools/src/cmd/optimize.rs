@@ -181,7 +181,12 @@ pub fn run(args: Args) -> Result<()> {
         args.input.display(),
         graph_chi2(&start),
         summary.final_chi2,
-        summary.iterations + if with_kernel { robust.robust.iterations } else { 0 },
+        summary.iterations
+            + if with_kernel {
+                robust.robust.iterations
+            } else {
+                0
+            },
         serde_json::to_value(summary.termination)?
             .as_str()
             .unwrap_or("?"),
