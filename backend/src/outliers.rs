@@ -326,9 +326,11 @@ pub fn optimize_robust(
         work.set_poses(&poses);
         kept.set_poses(&poses);
         let off_edges: Vec<usize> = (0..off.len()).filter(|k| off[*k]).collect();
-        let candidates: Vec<echofield_graph::Edge> = off_edges
-            .iter()
-            .filter_map(|k| work.edges().nth(*k).cloned())
+        let candidates: Vec<echofield_graph::Edge> = work
+            .edges()
+            .zip(&off)
+            .filter(|(_, o)| **o)
+            .map(|(e, _)| e.clone())
             .collect();
         let innovation = innovation_chi2(&kept, &candidates, solver.threads)?;
         let plain_chi2 = edge_chi2(&work);
@@ -478,18 +480,43 @@ fn prefix(
     end: usize,
     poses: &[Se2],
 ) -> (PoseGraph, Vec<RobustKernel>) {
+    let part = subgraph(graph, end, poses, |i, j, _| i < end && j < end);
+    let part_kernels = graph
+        .indexed_edges()
+        .zip(kernels)
+        .filter(|((i, j, _), _)| *i < end && *j < end)
+        .map(|(_, k)| *k)
+        .collect();
+    (part, part_kernels)
+}
+
+/// `graph` at `poses` without the edges flagged in `off`.
+fn without(graph: &PoseGraph, off: &[bool], poses: &[Se2]) -> PoseGraph {
+    subgraph(graph, graph.node_count(), poses, |_, _, k| !off[k])
+}
+
+/// The first `nodes` nodes of `graph` at `poses`, the edges for which
+/// `keep(from_index, to_index, edge_index)` holds (both ends must be among
+/// those nodes), and the fixed flags of those nodes.
+///
+/// The additions cannot fail: ids, endpoints and measurements come from a
+/// valid graph, so their `Result`s carry no information and are dropped.
+fn subgraph(
+    graph: &PoseGraph,
+    nodes: usize,
+    poses: &[Se2],
+    keep: impl Fn(usize, usize, usize) -> bool,
+) -> PoseGraph {
     let mut part = PoseGraph::new();
-    for (k, node) in graph.nodes().take(end).enumerate() {
-        let mut node = node.clone();
-        node.pose = poses[k];
-        // Ids are unique in `graph`, so they are in the prefix.
-        let _ = part.add_node(node);
+    for (node, pose) in graph.nodes().take(nodes).zip(poses) {
+        let _ = part.add_node(echofield_graph::Node {
+            pose: *pose,
+            ..node.clone()
+        });
     }
-    let mut part_kernels = Vec::new();
-    for ((i, j, edge), kernel) in graph.indexed_edges().zip(kernels) {
-        if i < end && j < end {
+    for (k, (i, j, edge)) in graph.indexed_edges().enumerate() {
+        if i < nodes && j < nodes && keep(i, j, k) {
             let _ = part.add_edge(edge.clone());
-            part_kernels.push(*kernel);
         }
     }
     for id in graph.fixed() {
@@ -497,26 +524,7 @@ fn prefix(
             let _ = part.fix(*id);
         }
     }
-    (part, part_kernels)
-}
-
-/// `graph` at `poses` without the edges flagged in `off`.
-fn without(graph: &PoseGraph, off: &[bool], poses: &[Se2]) -> PoseGraph {
-    let mut kept = PoseGraph::new();
-    for (k, node) in graph.nodes().enumerate() {
-        let mut node = node.clone();
-        node.pose = poses[k];
-        let _ = kept.add_node(node);
-    }
-    for ((_, _, edge), o) in graph.indexed_edges().zip(off) {
-        if !o {
-            let _ = kept.add_edge(edge.clone());
-        }
-    }
-    for id in graph.fixed() {
-        let _ = kept.fix(*id);
-    }
-    kept
+    part
 }
 
 /// χ² of every edge at the graph's poses, in edge order.
