@@ -67,7 +67,7 @@ use crate::linear::{BlockSystem, fill_reducing_ordering};
 use crate::linearize::{edge_error, edge_slots, error_and_jacobians, linearise};
 use crate::problem::{Problem, ProblemEdge};
 use crate::robust::RobustKernel;
-use crate::solver::Solver;
+use crate::solver::{Solver, linear_error, normalise};
 use crate::summary::{SolveSummary, Termination};
 use echofield_graph::{EdgeKind, NodeId, PoseGraph, Se2};
 use nalgebra::Matrix3;
@@ -694,20 +694,9 @@ pub(crate) fn innovation_chi2(
 ) -> Result<Vec<f64>, SolveError> {
     let problem = Problem::new(graph)?;
     let n = problem.variables();
-    let pairs = {
-        let mut pairs: Vec<(usize, usize)> = problem
-            .block_pairs()
-            .into_iter()
-            .map(|(a, b)| (a.min(b), a.max(b)))
-            .collect();
-        pairs.sort_unstable();
-        pairs.dedup();
-        pairs
-    };
-    let ordering =
-        fill_reducing_ordering(n, &pairs).map_err(|e| SolveError::Linear(e.to_string()))?;
-    let mut system = BlockSystem::<3>::new(n, &pairs, &ordering, threads)
-        .map_err(|e| SolveError::Linear(e.to_string()))?;
+    let pairs = normalise(problem.block_pairs());
+    let ordering = fill_reducing_ordering(n, &pairs).map_err(linear_error)?;
+    let mut system = BlockSystem::<3>::new(n, &pairs, &ordering, threads).map_err(linear_error)?;
     let slots = edge_slots(&problem, &system);
     let kernels = vec![RobustKernel::None; problem.edges.len()];
     let poses = graph.poses();
@@ -722,7 +711,7 @@ pub(crate) fn innovation_chi2(
     );
     system
         .factorise(&vec![0.0; system.dim()])
-        .map_err(|e| SolveError::Linear(e.to_string()))?;
+        .map_err(linear_error)?;
     let mut column = vec![0.0; system.dim()];
     let mut out = Vec::with_capacity(candidates.len());
     for edge in candidates {

@@ -39,7 +39,7 @@ struct Cached<const D: usize> {
     system: BlockSystem<D>,
 }
 
-fn normalise(pairs: Vec<(usize, usize)>) -> Vec<(usize, usize)> {
+pub(crate) fn normalise(pairs: Vec<(usize, usize)>) -> Vec<(usize, usize)> {
     let mut pairs: Vec<(usize, usize)> = pairs
         .into_iter()
         .map(|(a, b)| (a.min(b), a.max(b)))
@@ -79,7 +79,7 @@ fn prepare<const D: usize>(
     Ok(false)
 }
 
-fn linear_error(e: LinearError) -> SolveError {
+pub(crate) fn linear_error(e: LinearError) -> SolveError {
     SolveError::Linear(e.to_string())
 }
 

@@ -10,35 +10,18 @@
 //! bench command runs the whole table, city10000 included:
 //! `echofield bench-robust` (README "Robust backend").
 
-use echofield::eval::align_se2;
+use echofield::eval::aligned_position_rmse;
 use echofield_backend::{
     OutlierConfig, RobustConfig, RobustKernel, SolverConfig, optimize, optimize_robust,
 };
+use echofield_graph::PoseGraph;
 use echofield_graph::io::read_pose_graph;
 use echofield_graph::synthetic::{FalseLoops, add_false_loops};
-use echofield_graph::{PoseGraph, Se2};
 use echofield_tests::datasets_dir;
-use nalgebra::Vector2;
 
 fn load(file: &str) -> PoseGraph {
     let path = datasets_dir().join("posegraph").join(file);
     read_pose_graph(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
-}
-
-/// RMSE of the positions after the best SE(2) alignment, metres.
-fn aligned_rmse(estimate: &[Se2], reference: &[Se2]) -> f64 {
-    let p: Vec<Vector2<f64>> = estimate.iter().map(Se2::translation).collect();
-    let q: Vec<Vector2<f64>> = reference.iter().map(Se2::translation).collect();
-    let t = align_se2(&p, &q);
-    let sum: f64 = p
-        .iter()
-        .zip(&q)
-        .map(|(p, q)| {
-            let (x, y) = t.transform_xy(p.x, p.y);
-            (q - Vector2::new(x, y)).norm_squared()
-        })
-        .sum();
-    (sum / p.len() as f64).sqrt()
 }
 
 /// Solves `file` with `count` false loops of each seed and checks the ATE
@@ -60,7 +43,7 @@ fn survives(file: &str, count: usize, seeds: &[u64], limit_m: f64) {
         };
         add_false_loops(&mut graph, spec).unwrap();
         let summary = optimize_robust(&mut graph, &config, &OutlierConfig::default()).unwrap();
-        let ate = aligned_rmse(&graph.poses(), &reference.poses());
+        let ate = aligned_position_rmse(&graph.poses(), &reference.poses());
         let false_off = summary
             .switched_off
             .iter()

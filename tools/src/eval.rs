@@ -85,6 +85,26 @@ pub fn align_se2(estimate: &[Vector2<f64>], reference: &[Vector2<f64>]) -> Se2 {
     Se2::new(cq.x - rotated.x, cq.y - rotated.y, theta)
 }
 
+/// RMSE of the positions of `estimate` against `reference`, pose `k` with
+/// pose `k` (same length; extra poses of the longer are ignored), after the
+/// SE(2) alignment ([`align_se2`]) that minimises it, metres. For graphs
+/// over the same nodes, where [`ate`]'s association by time does not apply.
+pub fn aligned_position_rmse(estimate: &[Se2], reference: &[Se2]) -> f64 {
+    let p: Vec<Vector2<f64>> = estimate.iter().map(Se2::translation).collect();
+    let q: Vec<Vector2<f64>> = reference.iter().map(Se2::translation).collect();
+    let n = p.len().min(q.len());
+    let t = align_se2(&p[..n], &q[..n]);
+    let sum: f64 = p[..n]
+        .iter()
+        .zip(&q[..n])
+        .map(|(p, q)| {
+            let (x, y) = t.transform_xy(p.x, p.y);
+            (q - Vector2::new(x, y)).norm_squared()
+        })
+        .sum();
+    (sum / n.max(1) as f64).sqrt()
+}
+
 /// Absolute trajectory error statistics, metres.
 #[derive(Clone, Debug, Serialize)]
 pub struct AteStats {
@@ -239,6 +259,25 @@ pub fn cumulative_distance(poses: &[Se2]) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A rigidly moved copy has no error; moving one of four points by
+    /// 2 m away from the others' fit gives a known positive RMSE.
+    #[test]
+    fn aligned_position_rmse_ignores_a_rigid_motion() {
+        let reference = [
+            Se2::new(0.0, 0.0, 0.0),
+            Se2::new(4.0, 0.0, 0.0),
+            Se2::new(4.0, 3.0, 0.0),
+            Se2::new(0.0, 3.0, 0.0),
+        ];
+        let motion = Se2::new(10.0, -5.0, 0.7);
+        let moved: Vec<Se2> = reference.iter().map(|p| motion.compose(p)).collect();
+        assert!(aligned_position_rmse(&moved, &reference) < 1e-12);
+        let mut bent = reference;
+        bent[0] = Se2::new(0.0, -2.0, 0.0);
+        let rmse = aligned_position_rmse(&bent, &reference);
+        assert!(rmse > 0.5 && rmse < 1.0, "{rmse}");
+    }
 
     fn traj(poses: &[Se2], t0: f64) -> Vec<TrajectoryPose> {
         poses

@@ -2,13 +2,12 @@
 //! style of the vertigo benchmarks.
 
 use anyhow::{Context, Result, bail};
-use echofield::eval::align_se2;
+use echofield::eval::aligned_position_rmse;
 use echofield::output::write_atomic;
 use echofield_backend::{OutlierConfig, RobustConfig, SolverConfig, optimize, optimize_robust};
+use echofield_graph::PoseGraph;
 use echofield_graph::io::{read_pose_graph, write_g2o};
 use echofield_graph::synthetic::{FalseLoops, add_false_loops};
-use echofield_graph::{PoseGraph, Se2};
-use nalgebra::Vector2;
 use serde::Serialize;
 use std::path::PathBuf;
 
@@ -213,27 +212,10 @@ fn solve(
         seed,
         method: args.method,
         kernel: solver.robust.loop_closure.name(),
-        ate_m: aligned_rmse(&graph.poses(), &reference.poses()),
+        ate_m: aligned_position_rmse(&graph.poses(), &reference.poses()),
         false_switched_off: false_off,
         true_switched_off: true_off,
         hit_iteration_cap: cap,
         time_s,
     })
-}
-
-/// RMSE of the positions of `estimate` against `reference` (same nodes,
-/// same order) after the SE(2) alignment that minimises it, metres.
-fn aligned_rmse(estimate: &[Se2], reference: &[Se2]) -> f64 {
-    let p: Vec<Vector2<f64>> = estimate.iter().map(Se2::translation).collect();
-    let q: Vec<Vector2<f64>> = reference.iter().map(Se2::translation).collect();
-    let t = align_se2(&p, &q);
-    let sum: f64 = p
-        .iter()
-        .zip(&q)
-        .map(|(p, q)| {
-            let (x, y) = t.transform_xy(p.x, p.y);
-            (q - Vector2::new(x, y)).norm_squared()
-        })
-        .sum();
-    (sum / p.len().max(1) as f64).sqrt()
 }
