@@ -1,6 +1,7 @@
 //! Pose-graph and trajectory files.
 //!
-//! - [`g2o`]: `VERTEX_SE2`, `EDGE_SE2`, `EDGE_SE2_PRIOR`, `FIX`.
+//! - [`g2o`]: `VERTEX_SE2`, `EDGE_SE2`, `EDGE_PRIOR_SE2` (also the older
+//!   `EDGE_SE2_PRIOR`), `FIX`.
 //! - [`toro`]: `VERTEX2`, `EDGE2` (information ordered `xx xy yy tt xt yt`).
 //! - [`trajectory`]: TUM, CSV and KITTI-style trajectory rows.
 //!
@@ -85,7 +86,9 @@ pub fn parse_pose_graph(text: &str, path: &Path) -> Result<PoseGraph, IoError> {
 pub fn detect_format(text: &str) -> Option<GraphFormat> {
     let first = lines::records(text).next()?;
     match first.tag() {
-        "VERTEX_SE2" | "EDGE_SE2" | "EDGE_SE2_PRIOR" | "FIX" => Some(GraphFormat::G2o),
+        "VERTEX_SE2" | "EDGE_SE2" | "EDGE_PRIOR_SE2" | "EDGE_SE2_PRIOR" | "FIX" => {
+            Some(GraphFormat::G2o)
+        }
         "VERTEX2" | "EDGE2" => Some(GraphFormat::Toro),
         _ => None,
     }

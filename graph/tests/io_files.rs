@@ -97,3 +97,95 @@ EDGE_SE2 2 3 1 0 1.5707963267948966 1 0 0 1 0 1
     assert_eq!(graph.index_of(0), Some(0));
     assert_eq!(graph.index_of(3), Some(3));
 }
+
+/// GTSAM's `readG2o` stops at the first record it does not know, so the
+/// writer puts every `EDGE_SE2` before the priors (g2o's own tag,
+/// `EDGE_PRIOR_SE2`) and `FIX` last; reading the file back gives the same
+/// edges, whichever tag a prior carries.
+#[test]
+fn g2o_writes_relative_edges_first_then_priors_then_fix() {
+    use echofield_graph::{Edge, EdgeKind, Node, PoseGraph, Se2};
+    use nalgebra::Matrix3;
+    let mut graph = PoseGraph::new();
+    for id in 0..3u64 {
+        let pose = Se2::new(id as f64, 0.5 * id as f64, 0.1 * id as f64);
+        graph
+            .add_node(Node {
+                id,
+                pose,
+                stamp_s: None,
+            })
+            .unwrap();
+    }
+    let info = Matrix3::from_diagonal(&nalgebra::Vector3::new(4.0, 5.0, 6.0));
+    let step = Se2::new(1.0, 0.5, 0.1);
+    let heading = Matrix3::from_diagonal(&nalgebra::Vector3::new(1e-12, 1e-12, 40.0));
+    // Priors interleaved with the relative edges, as the pipeline adds them.
+    graph
+        .add_edge(Edge::new(EdgeKind::Odometry, 0, 1, step, info))
+        .unwrap();
+    graph
+        .add_edge(Edge::new(
+            EdgeKind::Prior,
+            1,
+            1,
+            Se2::new(1.0, 0.5, 0.0),
+            heading,
+        ))
+        .unwrap();
+    graph
+        .add_edge(Edge::new(EdgeKind::Odometry, 1, 2, step, info))
+        .unwrap();
+    graph
+        .add_edge(Edge::new(
+            EdgeKind::Prior,
+            2,
+            2,
+            Se2::new(2.0, 1.0, 0.2),
+            heading,
+        ))
+        .unwrap();
+    graph
+        .add_edge(Edge::new(
+            EdgeKind::Loop,
+            0,
+            2,
+            Se2::new(2.0, 1.0, 0.2),
+            info,
+        ))
+        .unwrap();
+    graph.fix(0).unwrap();
+
+    let mut buf = Vec::new();
+    write_g2o(&graph, &mut buf).unwrap();
+    let text = String::from_utf8(buf).unwrap();
+    let tags: Vec<&str> = text.lines().map(|l| l.split(' ').next().unwrap()).collect();
+    assert_eq!(
+        tags,
+        [
+            "VERTEX_SE2",
+            "VERTEX_SE2",
+            "VERTEX_SE2",
+            "EDGE_SE2",
+            "EDGE_SE2",
+            "EDGE_SE2",
+            "EDGE_PRIOR_SE2",
+            "EDGE_PRIOR_SE2",
+            "FIX"
+        ]
+    );
+    assert!(text.contains("\nEDGE_PRIOR_SE2 1 1 0.5 0 0.000000000001 0 0 0.000000000001 0 40\n"));
+    assert!(text.ends_with("FIX 0\n"));
+
+    let legacy = text.replace("EDGE_PRIOR_SE2", "EDGE_SE2_PRIOR");
+    for source in [text, legacy] {
+        let back = parse_pose_graph(&source, Path::new("mem.g2o")).unwrap();
+        assert_eq!(back.fixed().iter().copied().collect::<Vec<_>>(), [0]);
+        let key = |e: &Edge| (e.from, e.to, e.kind);
+        let mut a: Vec<_> = graph.edges().map(key).collect();
+        let mut b: Vec<_> = back.edges().map(key).collect();
+        a.sort();
+        b.sort();
+        assert_eq!(a, b);
+    }
+}

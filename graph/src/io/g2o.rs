@@ -3,9 +3,16 @@
 //! ```text
 //! VERTEX_SE2 id x y theta
 //! EDGE_SE2 from to dx dy dtheta I11 I12 I13 I22 I23 I33
-//! EDGE_SE2_PRIOR id x y theta I11 I12 I13 I22 I23 I33
+//! EDGE_PRIOR_SE2 id x y theta I11 I12 I13 I22 I23 I33
 //! FIX id [id ...]
 //! ```
+//! `EDGE_PRIOR_SE2` is g2o's own tag for a unary SE(2) prior
+//! (`types_slam2d`); the reader also accepts `EDGE_SE2_PRIOR`, which
+//! echofield wrote before. GTSAM's `readG2o` stops at the first record it
+//! does not know (`FIX` or a prior), so [`write_g2o`] puts them last:
+//! GTSAM then reads every vertex and every relative edge, and only the
+//! priors and the fixed nodes are left for the caller to add
+//! (`tools/check_gtsam.sh` does, and compares the χ²).
 //! Information matrices are given by their upper triangle, row by row, in the
 //! order `(x, y, θ)`. Edges read from a file are [`EdgeKind::Odometry`] when
 //! they join consecutive ids and [`EdgeKind::Loop`] otherwise; the kind only
@@ -61,7 +68,7 @@ pub fn parse_g2o(text: &str, path: &Path) -> Result<PoseGraph, IoError> {
                     Edge::new(kind, from, to, measurement, information),
                 ));
             }
-            "EDGE_SE2_PRIOR" => {
+            "EDGE_PRIOR_SE2" | "EDGE_SE2_PRIOR" => {
                 record.expect_fields(path, &PRIOR_FIELDS)?;
                 let id = record.id(path, 1, "id")?;
                 let measurement = pose_fields(&record, path, 2, &PRIOR_FIELDS)?;
@@ -91,7 +98,7 @@ pub fn parse_g2o(text: &str, path: &Path) -> Result<PoseGraph, IoError> {
                     record.line,
                     "tag",
                     format!(
-                        "unknown g2o record `{other}` (supported: VERTEX_SE2, EDGE_SE2, EDGE_SE2_PRIOR, FIX)"
+                        "unknown g2o record `{other}` (supported: VERTEX_SE2, EDGE_SE2, EDGE_PRIOR_SE2, FIX)"
                     ),
                 ));
             }
@@ -100,10 +107,12 @@ pub fn parse_g2o(text: &str, path: &Path) -> Result<PoseGraph, IoError> {
     raw.into_graph(path)
 }
 
-/// Writes the graph as g2o: every node as `VERTEX_SE2`, `FIX` for fixed
-/// nodes, relative edges as `EDGE_SE2` and priors as `EDGE_SE2_PRIOR`.
-/// Numbers are written with Rust's shortest round-trip formatting, so
-/// reading the file back gives the same values bit for bit.
+/// Writes the graph as g2o, in the order peers' readers need: every node
+/// as `VERTEX_SE2`, the relative edges as `EDGE_SE2`, then the priors as
+/// `EDGE_PRIOR_SE2` and the fixed nodes as `FIX` (see the module doc for
+/// why these come last). Numbers are written with Rust's shortest
+/// round-trip formatting, so reading the file back gives the same values
+/// bit for bit.
 pub fn write_g2o(graph: &PoseGraph, w: &mut dyn Write) -> std::io::Result<()> {
     for node in graph.nodes() {
         let p = &node.pose;
@@ -116,32 +125,32 @@ pub fn write_g2o(graph: &PoseGraph, w: &mut dyn Write) -> std::io::Result<()> {
             p.theta()
         )?;
     }
+    let (priors, relative): (Vec<&Edge>, Vec<&Edge>) =
+        graph.edges().partition(|e| e.kind == EdgeKind::Prior);
+    for edge in relative {
+        write!(w, "EDGE_SE2 {} {}", edge.from, edge.to)?;
+        write_measurement(edge, w)?;
+    }
+    for edge in priors {
+        write!(w, "EDGE_PRIOR_SE2 {}", edge.from)?;
+        write_measurement(edge, w)?;
+    }
     for id in graph.fixed() {
         writeln!(w, "FIX {id}")?;
     }
-    for edge in graph.edges() {
-        let z = &edge.measurement;
-        let i = &edge.information;
-        let info = [
-            i[(0, 0)],
-            i[(0, 1)],
-            i[(0, 2)],
-            i[(1, 1)],
-            i[(1, 2)],
-            i[(2, 2)],
-        ];
-        if edge.kind == EdgeKind::Prior {
-            write!(w, "EDGE_SE2_PRIOR {}", edge.from)?;
-        } else {
-            write!(w, "EDGE_SE2 {} {}", edge.from, edge.to)?;
-        }
-        write!(w, " {} {} {}", z.x(), z.y(), z.theta())?;
-        for v in info {
-            write!(w, " {v}")?;
-        }
-        writeln!(w)?;
-    }
     Ok(())
+}
+
+/// The measurement and the information's upper triangle of `edge`, and
+/// the line end.
+fn write_measurement(edge: &Edge, w: &mut dyn Write) -> std::io::Result<()> {
+    let z = &edge.measurement;
+    let i = &edge.information;
+    write!(w, " {} {} {}", z.x(), z.y(), z.theta())?;
+    for (r, c) in [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)] {
+        write!(w, " {}", i[(r, c)])?;
+    }
+    writeln!(w)
 }
 
 /// Edges between consecutive ids are odometry, others loop closures.

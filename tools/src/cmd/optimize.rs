@@ -78,7 +78,7 @@ pub enum InitArg {
 #[derive(Debug, clap::Args)]
 #[command(after_help = EXAMPLES)]
 pub struct Args {
-    /// Input pose graph: g2o (VERTEX_SE2, EDGE_SE2, FIX) or TORO (VERTEX2,
+    /// Input pose graph: g2o (VERTEX_SE2, EDGE_SE2, EDGE_PRIOR_SE2, FIX) or TORO (VERTEX2,
     /// EDGE2).
     pub input: PathBuf,
     /// Where to write the optimised graph (g2o).

@@ -153,7 +153,7 @@ pub fn pose_graph_text(rng: &mut ChaCha8Rng, toro: bool) -> Vec<u8> {
     if !toro && rng.random_bool(0.2) {
         let _ = writeln!(
             text,
-            "EDGE_SE2_PRIOR {} 0 0 0 1 0 0 1 0 1",
+            "EDGE_PRIOR_SE2 {} 0 0 0 1 0 0 1 0 1",
             id(rng, n + 2, nasty)
         );
     }

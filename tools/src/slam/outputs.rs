@@ -7,7 +7,7 @@
 //! | `dead_reckoning_tum.txt` | dead reckoning at the node stamps, TUM |
 //! | `ground_truth_tum.txt` | ground truth at the node stamps (its own frame), TUM; only with ground truth |
 //! | `poses.csv` | optimised node poses, `stamp_s,x_m,y_m,theta_rad` |
-//! | `graph.g2o` | the optimised pose graph (`VERTEX_SE2`, `EDGE_SE2`, `FIX`) |
+//! | `graph.g2o` | the optimised pose graph (`VERTEX_SE2`, `EDGE_SE2`, `EDGE_PRIOR_SE2`, `FIX` last) |
 //! | `loops.csv` | every loop-closure candidate ([`loops_csv`]) |
 //! | `trajectory.png` | dead reckoning, optimised and (aligned) ground truth |
 //! | `loops.png` | loop candidates over the trajectory, coloured by outcome |
