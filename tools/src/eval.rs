@@ -11,10 +11,16 @@
 //!   for planar trajectories.
 //! - ATE: statistics of the position error `|p_ref - T p_est|` over
 //!   associated pairs (the RMSE is evo's APE "translation part" RMSE).
-//! - RPE per distance: for each pose `i` and each distance `d`, the first
-//!   later pose `j` at least `d` metres further along the reference path;
-//!   error of the relative motion `(⊖ ref_i ⊕ ref_j)⁻¹ (⊖ est_i ⊕ est_j)`,
-//!   translation RMSE (m and % of d) and rotation RMSE (deg).
+//! - RPE per distance: for each pose `i` and each distance `d`, the later
+//!   pose `j` whose distance along the reference path from `i` is nearest
+//!   to `d` (the first such pose on a tie), kept when it is within
+//!   `d / 10` of `d` ([`rpe_pairs`]); error of the relative motion
+//!   `(⊖ ref_i ⊕ ref_j)⁻¹ (⊖ est_i ⊕ est_j)`, translation RMSE (m and % of
+//!   d) and rotation RMSE (deg). These are the pairs of evo's
+//!   `evo_rpe tum REF EST --delta d --delta_unit m --all_pairs
+//!   --pairs_from_reference` (its default relative tolerance 0.1), and the
+//!   errors its translation-part and `-r angle_deg` RMSEs;
+//!   `tools/check_evo.sh` compares them.
 
 use anyhow::{Result, bail};
 use echofield_graph::io::TrajectoryPose;
@@ -215,12 +221,7 @@ pub fn rpe(
     // (and would divide by zero in the percentage).
     for &d in distances_m.iter().filter(|d| d.is_finite() && **d > 0.0) {
         let (mut t2, mut r2, mut count) = (0.0, 0.0, 0usize);
-        for i in 0..refs.len() {
-            let target = travelled[i] + d;
-            let j = travelled.partition_point(|&s| s < target);
-            if j >= refs.len() {
-                break;
-            }
+        for (i, j) in rpe_pairs(&travelled, d) {
             let rel_ref = refs[i].between(&refs[j]);
             let rel_est = est[i].between(&est[j]);
             let e = rel_ref.between(&rel_est);
@@ -241,6 +242,50 @@ pub fn rpe(
         });
     }
     out
+}
+
+/// Relative tolerance of [`rpe_pairs`]: evo's default `--delta_tol`.
+pub const RPE_RELATIVE_TOLERANCE: f64 = 0.1;
+
+/// The RPE's pose pairs over distance `d` along a path whose cumulative
+/// length at each pose is `travelled` (non-decreasing): for each `i`, the
+/// `j > i` whose `travelled[j] - travelled[i]` is nearest to `d`, the
+/// first such `j` on a tie, kept when it is within `d ·`
+/// [`RPE_RELATIVE_TOLERANCE`] of `d`. This is evo's `all_pairs` rule
+/// (`evo.core.filters.filter_pairs_by_path`), found here by binary search
+/// instead of a scan of every later pose.
+pub fn rpe_pairs(travelled: &[f64], d: f64) -> Vec<(usize, usize)> {
+    let tolerance = d * RPE_RELATIVE_TOLERANCE;
+    let mut pairs = Vec::new();
+    for i in 0..travelled.len().saturating_sub(1) {
+        // Lengths from pose i, and their errors, computed as evo does
+        // (`(travelled[j] - travelled[i]) - d`), so that near-ties fall the
+        // same way.
+        let from_here = |s: f64| s - travelled[i];
+        let error = |s: f64| (from_here(s) - d).abs();
+        let later = &travelled[i + 1..];
+        // First later pose at or beyond d, and the first pose of the run
+        // of equal lengths just before it (a vehicle standing still
+        // repeats its length).
+        let above = later.partition_point(|&s| from_here(s) < d);
+        let mut best: Option<usize> = None;
+        if above > 0 {
+            let below_value = later[above - 1];
+            best = Some(later.partition_point(|&s| s < below_value));
+        }
+        if above < later.len() {
+            // A tie goes to the earlier pose, which is the one below.
+            if best.is_none_or(|k| error(later[above]) < error(later[k])) {
+                best = Some(above);
+            }
+        }
+        if let Some(k) = best
+            && error(later[k]) <= tolerance
+        {
+            pairs.push((i, i + 1 + k));
+        }
+    }
+    pairs
 }
 
 /// Path length from the first pose to each pose.
@@ -348,6 +393,47 @@ mod tests {
         assert!(ate(&very_late, &truth, Alignment::None, 0.01).is_err());
     }
 
+    /// evo's rule written out as it states it (every later pose examined),
+    /// against the binary search.
+    fn pairs_by_scan(travelled: &[f64], d: f64) -> Vec<(usize, usize)> {
+        let mut pairs = Vec::new();
+        for i in 0..travelled.len().saturating_sub(1) {
+            let mut best = i + 1;
+            for j in i + 1..travelled.len() {
+                let e = ((travelled[j] - travelled[i]) - d).abs();
+                if e < ((travelled[best] - travelled[i]) - d).abs() {
+                    best = j;
+                }
+            }
+            if (travelled[best] - travelled[i] - d).abs() <= 0.1 * d {
+                pairs.push((i, best));
+            }
+        }
+        pairs
+    }
+
+    #[test]
+    fn rpe_pairs_follow_evos_all_pairs_rule() {
+        // Steps of 0, 0.4 and 1.3 m, with stops (repeated lengths).
+        let steps = [0.0, 0.4, 1.3, 0.0, 0.0, 1.3, 0.4, 0.4, 0.0, 1.3];
+        let mut travelled = vec![0.0];
+        for k in 0..60 {
+            travelled.push(travelled[k] + steps[k % steps.len()]);
+        }
+        for d in [0.4, 1.0, 2.5, 5.0, 10.0, 40.0] {
+            assert_eq!(
+                rpe_pairs(&travelled, d),
+                pairs_by_scan(&travelled, d),
+                "d = {d}"
+            );
+        }
+        // Every pose to the pose 2 m on, when the poses are 1 m apart.
+        let even: Vec<f64> = (0..6).map(f64::from).collect();
+        assert_eq!(rpe_pairs(&even, 2.0), [(0, 2), (1, 3), (2, 4), (3, 5)]);
+        // Beyond the tolerance: 2.5 m on lies 0.5 m from any pose.
+        assert!(rpe_pairs(&even, 2.5).is_empty());
+    }
+
     #[test]
     fn rpe_sees_a_heading_drift() {
         // An estimate that turns 1° per metre more than the truth.
@@ -359,8 +445,12 @@ mod tests {
         }
         let stats = rpe(&traj(&drifting, 0.0), &traj(&truth, 0.0), &[10.0], 0.01);
         assert_eq!(stats.len(), 1);
+        // Poses 0-39 pair with the pose 10 m on (10° of drift); pose 40
+        // pairs with the last one, 9 m on, within the tolerance d/10 (9°).
+        assert_eq!(stats[0].pairs, 41);
+        let expected = ((40.0 * 100.0 + 81.0) / 41.0f64).sqrt();
         assert!(
-            (stats[0].rotation_rmse_deg - 10.0).abs() < 1e-9,
+            (stats[0].rotation_rmse_deg - expected).abs() < 1e-9,
             "{stats:?}"
         );
         assert!(stats[0].translation_rmse_m > 0.5);

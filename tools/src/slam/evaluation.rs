@@ -425,7 +425,7 @@ fn definitions(config: &SlamConfig) -> BTreeMap<String, String> {
         ("ate_rmse_m", "RMSE of the position error of the optimised node poses against the ground truth interpolated at the node stamps, after the best SE(2) alignment".to_string()),
         ("ate_rmse_dead_reckoning_m", "the same for the dead-reckoning poses at the node stamps".to_string()),
         ("distance_travelled_m", "ground-truth path length between the first and the last node stamp".to_string()),
-        ("rpe", "relative pose error over the node poses: for each node, the first later node at least d metres further along the ground-truth path".to_string()),
+        ("rpe", "relative pose error over the node poses: for each node, the later node whose distance along the ground-truth path is nearest to d, kept within d/10 (evo_rpe tum ground_truth_tum.txt trajectory_tum.txt --delta d --delta_unit m --all_pairs --pairs_from_reference)".to_string()),
         ("true_positive", format!("an accepted loop whose edge measurement is within {} m and {} deg of the ground-truth relative pose", e.true_positive_translation_m, e.true_positive_rotation_deg)),
         ("loop_precision", "true positives / accepted loops (1 when no loop is accepted: no accepted loop is wrong; `loop_evaluation` then shows 0 true and 0 false positives)".to_string()),
         ("gt_overlap", format!("fraction of the points of S_k, placed in node j's frame with the ground-truth relative pose, that fall in a {0} m cell holding a point of S_j or next to one", e.overlap_distance_m)),
