@@ -3,8 +3,9 @@
 //! The shared vocabulary of echofield: rigid transforms of the plane
 //! ([`Se2`], on nalgebra), pose graphs ([`PoseGraph`], on petgraph), the g2o
 //! and TORO file formats ([`io`]), trajectory export (TUM, CSV, KITTI-style
-//! rows) and seeded synthetic pose graphs for tests and benchmarks
-//! ([`synthetic`]).
+//! rows), the optimised trajectory at the navigation's rate
+//! ([`corrected`]) and seeded synthetic pose graphs for tests and
+//! benchmarks ([`synthetic`]).
 //!
 //! ```
 //! use echofield_graph::Se2;
@@ -15,6 +16,7 @@
 //! assert!((back.to_vector() - world_from_b.to_vector()).norm() < 1e-12);
 //! ```
 
+pub mod corrected;
 pub mod io;
 pub mod pose_graph;
 pub mod se2;

@@ -12,10 +12,13 @@ use std::path::Path;
 
 /// The outputs written before `mosaic.png` and after it (module doc of
 /// `slam::outputs`).
-const BEFORE: [&str; 9] = [
+const BEFORE: [&str; 12] = [
     "config.toml",
     "trajectory_tum.txt",
     "dead_reckoning_tum.txt",
+    "trajectory_nav_tum.txt",
+    "trajectory_nav_kitti.txt",
+    "trajectory_nav_times.txt",
     "ground_truth_tum.txt",
     "poses.csv",
     "graph.g2o",

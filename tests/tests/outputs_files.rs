@@ -74,6 +74,74 @@ fn tum_files_hold_the_node_poses_at_the_node_stamps() {
     assert!((dr.rmse_m - expected).abs() <= 1e-9 * expected.max(1e-3));
 }
 
+/// The navigation-rate trajectory passes through every node pose, moves
+/// no faster than the vehicle between samples, agrees between its TUM and
+/// KITTI forms, and its ATE in the report agrees with one computed here
+/// from the file and the mission's ground truth (nearest-stamp
+/// association instead of the report's interpolation).
+#[test]
+fn navigation_rate_trajectory_is_dense_and_passes_through_the_nodes() {
+    let f = fixture();
+    let dense = read_tum(&f.path.join("trajectory_nav_tum.txt")).unwrap();
+    let kitti = std::fs::read_to_string(f.path.join("trajectory_nav_kitti.txt")).unwrap();
+    let times = std::fs::read_to_string(f.path.join("trajectory_nav_times.txt")).unwrap();
+    assert_eq!(kitti.lines().count(), dense.len());
+    assert_eq!(times.lines().count(), dense.len());
+    for ((p, row), t) in dense.iter().zip(kitti.lines()).zip(times.lines()) {
+        let m: Vec<f64> = row.split(' ').map(|v| v.parse().unwrap()).collect();
+        assert_eq!(m.len(), 12);
+        assert!((m[3] - p.pose.x()).abs() < 1e-9 && (m[7] - p.pose.y()).abs() < 1e-9);
+        assert!((m[4].atan2(m[0]) - p.pose.theta()).abs() < 1e-9);
+        assert!((t.parse::<f64>().unwrap() - p.stamp_s).abs() < 1e-6);
+    }
+    // At the navigation's rate: far more samples than nodes.
+    assert!(dense.len() > 20 * f.output.nodes.len(), "{}", dense.len());
+    for node in &f.output.nodes {
+        let sample = dense
+            .iter()
+            .find(|p| (p.stamp_s - node.stamp_s).abs() < 1e-6)
+            .expect("every node stamp is a sample");
+        assert!((sample.pose.translation() - node.optimised.translation()).norm() < 1e-9);
+    }
+    // No jump: the tank vehicle moves well under 2 m/s.
+    for w in dense.windows(2) {
+        let dt = w[1].stamp_s - w[0].stamp_s;
+        let step = (w[1].pose.translation() - w[0].pose.translation()).norm();
+        assert!(
+            dt > 0.0 && step <= 2.0 * dt + 1e-3,
+            "{step} m in {dt} s at {}",
+            w[1].stamp_s
+        );
+    }
+    let (first, last) = (
+        f.output.nodes[0].stamp_s,
+        f.output.nodes.last().unwrap().stamp_s,
+    );
+    let truth: Vec<echofield_graph::io::TrajectoryPose> = f
+        .mission
+        .ground_truth
+        .iter()
+        .filter(|g| g.stamp_s >= first && g.stamp_s <= last)
+        .map(|g| echofield_graph::io::TrajectoryPose {
+            stamp_s: g.stamp_s,
+            pose: g.world_from_vehicle,
+        })
+        .collect();
+    let here = ate(&dense, &truth, Alignment::Se2, 0.06).unwrap().rmse_m;
+    let report = f.output.report.ate_navigation_rate.as_ref().unwrap();
+    assert!(
+        report.pairs >= truth.len() - 2,
+        "{} of {}",
+        report.pairs,
+        truth.len()
+    );
+    assert!(
+        (report.rmse_m - here).abs() <= 0.1 * here + 0.01,
+        "{} vs {here}",
+        report.rmse_m
+    );
+}
+
 #[test]
 fn poses_csv_and_graph_g2o_hold_the_optimised_graph() {
     let f = fixture();

@@ -52,6 +52,7 @@ pub mod evaluation;
 pub mod health;
 mod input_checks;
 pub mod loops;
+pub mod navigation_rate;
 pub mod nodes;
 pub mod odometry_scale;
 pub mod outputs;

@@ -424,6 +424,7 @@ fn definitions(config: &SlamConfig) -> BTreeMap<String, String> {
     let entries = [
         ("ate_rmse_m", "RMSE of the position error of the optimised node poses against the ground truth interpolated at the node stamps, after the best SE(2) alignment".to_string()),
         ("ate_rmse_dead_reckoning_m", "the same for the dead-reckoning poses at the node stamps".to_string()),
+        ("ate_navigation_rate", "ATE of the optimised trajectory at the navigation's rate (trajectory_nav_tum.txt: the dead reckoning corrected by the optimised nodes, exact at the nodes, continuous between them), interpolated at every ground-truth sample between the first and the last node stamp, after the best SE(2) alignment".to_string()),
         ("distance_travelled_m", "ground-truth path length between the first and the last node stamp".to_string()),
         ("rpe", "relative pose error over the node poses: for each node, the later node whose distance along the ground-truth path is nearest to d, kept within d/10 (evo_rpe tum ground_truth_tum.txt trajectory_tum.txt --delta d --delta_unit m --all_pairs --pairs_from_reference)".to_string()),
         ("true_positive", format!("an accepted loop whose edge measurement is within {} m and {} deg of the ground-truth relative pose", e.true_positive_translation_m, e.true_positive_rotation_deg)),

@@ -5,6 +5,8 @@
 //! | `config.toml` | the effective configuration (`echofield run --config` reads it back) |
 //! | `trajectory_tum.txt` | optimised node poses, TUM `stamp x y z qx qy qz qw` |
 //! | `dead_reckoning_tum.txt` | dead reckoning at the node stamps, TUM |
+//! | `trajectory_nav_tum.txt` | the optimised trajectory at the navigation's rate (the dead reckoning corrected by the optimised nodes, [`navigation_rate`](crate::slam::navigation_rate)), TUM |
+//! | `trajectory_nav_kitti.txt`, `trajectory_nav_times.txt` | the same as KITTI odometry rows (3x4 `[R \| t]`, row-major) and their stamps, one per line |
 //! | `ground_truth_tum.txt` | ground truth at the node stamps (its own frame), TUM; only with ground truth |
 //! | `poses.csv` | optimised node poses, `stamp_s,x_m,y_m,theta_rad` |
 //! | `graph.g2o` | the optimised pose graph (`VERTEX_SE2`, `EDGE_SE2`, `EDGE_PRIOR_SE2`, `FIX` last) |
@@ -47,7 +49,7 @@ use crate::slam::{NodeRecord, SlamOutput};
 use anyhow::{Context, Result};
 use echofield_frontend::sensors::Mission;
 use echofield_graph::Se2;
-use echofield_graph::io::{TrajectoryPose, write_csv, write_g2o, write_tum};
+use echofield_graph::io::{TrajectoryPose, write_csv, write_g2o, write_kitti, write_tum};
 use loops_csv::{LoopRow, write_loops_csv};
 use mosaic::{MosaicConfig, build_mosaic, mosaic_png, world_file};
 use nalgebra::Vector2;
@@ -65,6 +67,9 @@ pub const FOLDER_FILES: &[&str] = &[
     "config.toml",
     "trajectory_tum.txt",
     "dead_reckoning_tum.txt",
+    "trajectory_nav_tum.txt",
+    "trajectory_nav_kitti.txt",
+    "trajectory_nav_times.txt",
     "ground_truth_tum.txt",
     "poses.csv",
     "graph.g2o",
@@ -153,7 +158,8 @@ fn node_trajectory(output: &SlamOutput, pose: impl Fn(&NodeRecord) -> Se2) -> Ve
         .collect()
 }
 
-/// `config.toml`, the TUM files, `poses.csv`, `graph.g2o`, `loops.csv`.
+/// `config.toml`, the TUM files, the navigation-rate trajectory (TUM,
+/// KITTI and its stamps), `poses.csv`, `graph.g2o`, `loops.csv`.
 fn write_tables(dir: &Path, output: &SlamOutput, loops: &[LoopRow]) -> Result<()> {
     write_atomic(&dir.join("config.toml"), |w| {
         Ok(w.write_all(output.config.to_toml_string().as_bytes())?)
@@ -165,6 +171,23 @@ fn write_tables(dir: &Path, output: &SlamOutput, loops: &[LoopRow]) -> Result<()
     })?;
     write_atomic(&dir.join("dead_reckoning_tum.txt"), |w| {
         Ok(write_tum(&dead_reckoning, w)?)
+    })?;
+    let dense: Vec<TrajectoryPose> = output
+        .navigation_rate_trajectory()
+        .into_iter()
+        .map(|(stamp_s, pose)| TrajectoryPose { stamp_s, pose })
+        .collect();
+    write_atomic(&dir.join("trajectory_nav_tum.txt"), |w| {
+        Ok(write_tum(&dense, w)?)
+    })?;
+    write_atomic(&dir.join("trajectory_nav_kitti.txt"), |w| {
+        Ok(write_kitti(&dense, w)?)
+    })?;
+    write_atomic(&dir.join("trajectory_nav_times.txt"), |w| {
+        for p in &dense {
+            writeln!(w, "{:.6}", p.stamp_s)?;
+        }
+        Ok(())
     })?;
     if let Some(gt) = &output.ground_truth {
         let poses: Vec<TrajectoryPose> = gt

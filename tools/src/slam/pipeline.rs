@@ -13,7 +13,8 @@ use super::result::{
     StageTimings, TimeGap,
 };
 use super::{
-    ProgressSink, SlamError, check_sensors, health, input_checks, odometry_scale, sequential,
+    ProgressSink, SlamError, check_sensors, health, input_checks, navigation_rate, odometry_scale,
+    sequential,
 };
 use echofield_backend::{RobustSolveSummary, edge_error};
 use echofield_frontend::dead_reckoning::{self, Navigation};
@@ -269,6 +270,7 @@ fn run(
         ate_rmse_dead_reckoning_m: None,
         ate: None,
         ate_dead_reckoning: None,
+        ate_navigation_rate: None,
         distance_travelled_m: None,
         rpe: None,
         rpe_dead_reckoning: None,
@@ -289,6 +291,9 @@ fn run(
         config,
         &mut report,
     );
+    let dead_reckoning = dense_dead_reckoning(&navigation);
+    let dense = navigation_rate::trajectory(&records, &dead_reckoning);
+    navigation_rate::evaluate(&mission.ground_truth, &records, &dense, &mut report);
     report.timings.evaluation_s = t.elapsed().as_secs_f64();
     report.time_s = start.elapsed().as_secs_f64();
 
@@ -304,7 +309,7 @@ fn run(
         config: config.clone(),
         nodes: records,
         graph,
-        dead_reckoning: dense_dead_reckoning(&navigation),
+        dead_reckoning,
         ground_truth,
         loops,
         sequential,

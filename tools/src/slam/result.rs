@@ -63,6 +63,14 @@ pub struct SlamOutput {
     pub image_config: ImageConfig,
 }
 
+impl SlamOutput {
+    /// The optimised trajectory at the rate of [`Self::dead_reckoning`],
+    /// the node poses merged in ([`crate::slam::navigation_rate`]).
+    pub fn navigation_rate_trajectory(&self) -> Vec<(f64, Se2)> {
+        crate::slam::navigation_rate::trajectory(&self.nodes, &self.dead_reckoning)
+    }
+}
+
 /// Rate of [`SlamOutput::dead_reckoning`], Hz.
 pub const DEAD_RECKONING_RATE_HZ: f64 = 10.0;
 
@@ -546,6 +554,11 @@ pub struct Report {
     pub ate: Option<AteStats>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub ate_dead_reckoning: Option<AteStats>,
+    /// ATE of the optimised trajectory at the navigation's rate
+    /// ([`navigation_rate`](crate::slam::navigation_rate)) over the
+    /// ground-truth samples between the first and the last node.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ate_navigation_rate: Option<AteStats>,
     /// Ground-truth path length over the span of the nodes, metres.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub distance_travelled_m: Option<f64>,
