@@ -12,7 +12,7 @@ use std::path::Path;
 
 /// The outputs written before `mosaic.png` and after it (module doc of
 /// `slam::outputs`).
-const BEFORE: [&str; 12] = [
+const BEFORE: [&str; 13] = [
     "config.toml",
     "trajectory_tum.txt",
     "dead_reckoning_tum.txt",
@@ -24,6 +24,7 @@ const BEFORE: [&str; 12] = [
     "graph.g2o",
     "loops.csv",
     "trajectory.png",
+    "trajectory_error.png",
     "loops.png",
 ];
 const AFTER: [&str; 3] = ["mosaic.pgw", "mission.mcap", "report.json"];

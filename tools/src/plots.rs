@@ -62,6 +62,19 @@ where
     encode_png(&rgb, width, height, ExtendedColorType::Rgb8)
 }
 
+/// Draws with `draw` over an existing RGB picture (`width` x `height`,
+/// row-major, 3 bytes per pixel) in place. Precondition: `rgb` holds
+/// exactly that many bytes.
+pub fn draw_over<F>(rgb: &mut [u8], width: u32, height: u32, draw: F) -> Result<()>
+where
+    F: FnOnce(&DrawingArea<BitMapBackend<'_>, Shift>) -> Result<()>,
+{
+    register_font()?;
+    let root = BitMapBackend::with_buffer(rgb, (width, height)).into_drawing_area();
+    draw(&root)?;
+    root.present().map_err(plot_error)
+}
+
 /// Encodes raw 8-bit pixels (RGB or grey) as PNG with fast compression:
 /// output pictures are written on every run, and the default level costs
 /// several times more for a few percent smaller files.

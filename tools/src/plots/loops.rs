@@ -4,8 +4,9 @@
 //! Colours: accepted and true against ground truth in green, accepted and
 //! false in red, accepted without ground truth in blue; rejected candidates
 //! thin and pale, in a fixed colour per check that rejected them. Rejected
-//! ones are drawn first so that accepted ones stay visible. The legend
-//! counts each class.
+//! ones are drawn first, then the accepted true ones, and the accepted
+//! false ones last and wider, so that a few false loops among hundreds of
+//! true ones stay visible. The legend counts each class.
 
 use super::trajectory::OPTIMISED;
 use super::{
@@ -76,8 +77,8 @@ pub fn loops_png(
         match &l.class {
             LoopClass::Rejected(check) => rejected.entry(check.as_str()).or_default().push(l),
             LoopClass::Accepted(None) => accepted[0].push(l),
-            LoopClass::Accepted(Some(false)) => accepted[1].push(l),
-            LoopClass::Accepted(Some(true)) => accepted[2].push(l),
+            LoopClass::Accepted(Some(true)) => accepted[1].push(l),
+            LoopClass::Accepted(Some(false)) => accepted[2].push(l),
         }
     }
     render_png(size_px.0, size_px.1, |root| {
@@ -119,15 +120,18 @@ pub fn loops_png(
         }
         let names = [
             "accepted (no ground truth)",
-            "accepted, false",
             "accepted, true",
+            "accepted, false",
         ];
-        let colours = [ACCEPTED_UNKNOWN, ACCEPTED_FALSE, ACCEPTED_TRUE];
-        for ((segments, name), colour) in accepted.iter().zip(names).zip(colours) {
+        let colours = [ACCEPTED_UNKNOWN, ACCEPTED_TRUE, ACCEPTED_FALSE];
+        let widths = [2, 2, 3];
+        for (((segments, name), colour), width) in
+            accepted.iter().zip(names).zip(colours).zip(widths)
+        {
             if segments.is_empty() {
                 continue;
             }
-            draw_segments(&mut chart, segments, colour.stroke_width(2))?
+            draw_segments(&mut chart, segments, colour.stroke_width(width))?
                 .label(format!("{name} ({})", segments.len()))
                 .legend(legend_line(colour));
         }
@@ -189,5 +193,30 @@ mod tests {
             !rgb.pixels()
                 .any(|p| p.0 == [ACCEPTED_UNKNOWN.0, ACCEPTED_UNKNOWN.1, ACCEPTED_UNKNOWN.2])
         );
+    }
+
+    /// A false loop under many true ones that cover it stays visible: the
+    /// false ones are drawn last.
+    #[test]
+    fn false_loops_are_drawn_over_true_ones() {
+        let trajectory: Vec<(f64, f64)> = (0..50).map(|i| (f64::from(i), 0.0)).collect();
+        let mut loops: Vec<LoopSegment> = vec![LoopSegment {
+            from: (0.0, 10.0),
+            to: (40.0, 10.0),
+            class: LoopClass::Accepted(Some(false)),
+        }];
+        for k in 0..20 {
+            loops.push(LoopSegment {
+                from: (0.0, 10.0 + 0.01 * f64::from(k)),
+                to: (40.0, 10.0 + 0.01 * f64::from(k)),
+                class: LoopClass::Accepted(Some(true)),
+            });
+        }
+        let png = loops_png(&trajectory, &loops, "loops", (500, 400)).unwrap();
+        let rgb = image::load_from_memory(&png).unwrap().to_rgb8();
+        let red = [ACCEPTED_FALSE.0, ACCEPTED_FALSE.1, ACCEPTED_FALSE.2];
+        // More red than the legend's short sample line alone could give.
+        let count = rgb.pixels().filter(|p| p.0 == red).count();
+        assert!(count > 200, "{count} red pixels");
     }
 }

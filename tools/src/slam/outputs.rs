@@ -11,7 +11,8 @@
 //! | `poses.csv` | optimised node poses, `stamp_s,x_m,y_m,theta_rad` |
 //! | `graph.g2o` | the optimised pose graph (`VERTEX_SE2`, `EDGE_SE2`, `EDGE_PRIOR_SE2`, `FIX` last) |
 //! | `loops.csv` | every loop-closure candidate ([`loops_csv`]) |
-//! | `trajectory.png` | dead reckoning, optimised and (aligned) ground truth |
+//! | `trajectory.png` | dead reckoning, optimised and (aligned) ground truth, dashed on top |
+//! | `trajectory_error.png` | the optimised nodes coloured by their position error against the aligned ground truth; only with ground truth |
 //! | `loops.png` | loop candidates over the trajectory, coloured by outcome |
 //! | `mosaic.png`, `mosaic.pgw` | acoustic mosaic at the optimised poses and its world file ([`mosaic`]) |
 //! | `mission.mcap` | poses, scans, images and loops for Foxglove ([`foxglove`]) |
@@ -44,7 +45,9 @@ use crate::eval::align_se2;
 use crate::output::folder::OutputFolder;
 use crate::output::write_atomic;
 use crate::plots::loops::{LoopClass, LoopSegment, loops_png};
-use crate::plots::trajectory::{DEAD_RECKONING, GROUND_TRUTH, OPTIMISED, Track, trajectory_png};
+use crate::plots::trajectory::{
+    DEAD_RECKONING, GROUND_TRUTH, OPTIMISED, Track, error_png, trajectory_png,
+};
 use crate::slam::{NodeRecord, SlamOutput};
 use anyhow::{Context, Result};
 use echofield_frontend::sensors::Mission;
@@ -75,6 +78,7 @@ pub const FOLDER_FILES: &[&str] = &[
     "graph.g2o",
     "loops.csv",
     "trajectory.png",
+    "trajectory_error.png",
     "loops.png",
     "mosaic.png",
     "mosaic.pgw",
@@ -216,6 +220,14 @@ fn write_plots(
         PLOT_SIZE_PX,
     )?;
     write_atomic(&dir.join("trajectory.png"), |w| Ok(w.write_all(&png)?))?;
+    if let Some(t) = world_from_gt
+        && let Some(png) = error_plot(output, t)?
+    {
+        write_atomic(
+            &dir.join("trajectory_error.png"),
+            |w| Ok(w.write_all(&png)?),
+        )?;
+    }
     let optimised: Vec<Se2> = output.nodes.iter().map(|n| n.optimised).collect();
     let png = loops_png(
         &positions(optimised.iter().copied()),
@@ -258,28 +270,54 @@ fn positions(poses: impl Iterator<Item = Se2>) -> Vec<(f64, f64)> {
 /// Ground truth (aligned into the world frame) under dead reckoning under
 /// the optimised poses, all at the node stamps (as in the TUM files).
 fn trajectory_tracks(output: &SlamOutput, world_from_gt: Option<Se2>) -> Vec<Track> {
-    let mut tracks = Vec::with_capacity(3);
+    let mut tracks = vec![
+        Track {
+            label: "dead reckoning".into(),
+            points: positions(output.nodes.iter().map(|n| n.dead_reckoning)),
+            colour: DEAD_RECKONING,
+            width_px: 2,
+            dashed: false,
+        },
+        Track {
+            label: "optimised (SLAM nodes)".into(),
+            points: positions(output.nodes.iter().map(|n| n.optimised)),
+            colour: OPTIMISED,
+            width_px: 2,
+            dashed: false,
+        },
+    ];
     if let (Some(gt), Some(t)) = (&output.ground_truth, world_from_gt) {
         tracks.push(Track {
             label: "ground truth (SE(2)-aligned)".into(),
             points: positions(gt.iter().map(|(_, p)| t.compose(p))),
             colour: GROUND_TRUTH,
-            width_px: 3,
+            width_px: 2,
+            dashed: true,
         });
     }
-    tracks.push(Track {
-        label: "dead reckoning".into(),
-        points: positions(output.nodes.iter().map(|n| n.dead_reckoning)),
-        colour: DEAD_RECKONING,
-        width_px: 2,
-    });
-    tracks.push(Track {
-        label: "optimised (SLAM nodes)".into(),
-        points: positions(output.nodes.iter().map(|n| n.optimised)),
-        colour: OPTIMISED,
-        width_px: 2,
-    });
     tracks
+}
+
+/// `trajectory_error.png`: the optimised nodes that have ground truth,
+/// coloured by their distance to it after the alignment `world_from_gt`.
+fn error_plot(output: &SlamOutput, world_from_gt: Se2) -> Result<Option<Vec<u8>>> {
+    let (mut estimate, mut reference, mut errors) = (Vec::new(), Vec::new(), Vec::new());
+    for n in &output.nodes {
+        if let Some(gt) = n.ground_truth {
+            let truth = world_from_gt.compose(&gt);
+            estimate.push((n.optimised.x(), n.optimised.y()));
+            reference.push((truth.x(), truth.y()));
+            errors.push((n.optimised.translation() - truth.translation()).norm());
+        }
+    }
+    if estimate.len() < 2 {
+        return Ok(None);
+    }
+    let caption = format!(
+        "{}: position error of the optimised nodes",
+        output.mission_name
+    );
+    error_png(&estimate, &errors, &reference, &caption, PLOT_SIZE_PX).map(Some)
 }
 
 /// Every candidate as a segment between its nodes' optimised positions.

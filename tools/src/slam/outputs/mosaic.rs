@@ -19,11 +19,12 @@
 //! file (pixel size, rotation terms, centre of the upper-left pixel in the
 //! run's world frame, metres) so GIS tools place the picture.
 
-use crate::plots::encode_png;
+use crate::plots::{FONT, draw_over, encode_png, plot_error};
 use anyhow::{Result, bail};
 use echofield_frontend::image::Grid;
 use echofield_graph::Se2;
 use image::ExtendedColorType;
+use plotters::prelude::*;
 
 /// How overlapping nodes combine in a cell.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -278,8 +279,92 @@ pub fn mosaic_png(grid: &Grid, trajectory: &[(f64, f64)]) -> Result<Vec<u8>> {
     for pair in trajectory.windows(2) {
         draw_line(&mut rgb, w, h, to_px(pair[0]), to_px(pair[1]), TRACK);
     }
-    encode_png(&rgb, w as u32, h as u32, ExtendedColorType::Rgb8)
+    let (wp, hp) = (u32::try_from(w)?, u32::try_from(h)?);
+    if w >= MIN_ANNOTATED_PX.0 && h >= MIN_ANNOTATED_PX.1 {
+        draw_over(&mut rgb, wp, hp, |root| {
+            draw_scale_bar(root, cell, w)?;
+            draw_north_arrow(root, w)
+        })?;
+    }
+    encode_png(&rgb, wp, hp, ExtendedColorType::Rgb8)
 }
+
+/// Pictures smaller than this (width, height in pixels) get no scale bar
+/// or north arrow: they would cover most of it.
+const MIN_ANNOTATED_PX: (usize, usize) = (200, 120);
+
+/// The longest of 1, 2 or 5 times a power of ten metres that is at most
+/// `max_m`.
+fn nice_length_m(max_m: f64) -> f64 {
+    let power = 10f64.powf(max_m.log10().floor());
+    [5.0, 2.0, 1.0]
+        .into_iter()
+        .map(|f| f * power)
+        .find(|&l| l <= max_m)
+        .unwrap_or(power)
+}
+
+/// A scale bar in the lower left corner, about a fifth of the picture's
+/// width, on a white box, labelled in metres (`cell_m` metres per pixel).
+fn draw_scale_bar(root: &Annotated<'_>, cell_m: f64, width_px: usize) -> Result<()> {
+    let (_, height) = root.dim_in_pixel();
+    let length_m = nice_length_m(0.2 * width_px as f64 * cell_m);
+    let length_px = (length_m / cell_m).round() as i32;
+    let (left, bottom) = (14, height as i32 - 14);
+    let background = [(left - 8, bottom - 40), (left + length_px + 8, bottom + 8)];
+    root.draw(&Rectangle::new(background, WHITE.mix(0.85).filled()))
+        .map_err(plot_error)?;
+    // Two halves, black and white, framed in black.
+    let half = length_px / 2;
+    for (k, colour) in [(0, BLACK), (1, WHITE)] {
+        let x0 = left + k * half;
+        let x1 = if k == 0 {
+            left + half
+        } else {
+            left + length_px
+        };
+        root.draw(&Rectangle::new(
+            [(x0, bottom - 8), (x1, bottom)],
+            colour.filled(),
+        ))
+        .map_err(plot_error)?;
+    }
+    root.draw(&Rectangle::new(
+        [(left, bottom - 8), (left + length_px, bottom)],
+        BLACK.stroke_width(1),
+    ))
+    .map_err(plot_error)?;
+    let label = format!("{length_m} m");
+    root.draw(&Text::new(label, (left, bottom - 30), (FONT, 16)))
+        .map_err(plot_error)
+}
+
+/// An arrow pointing up (north: the mosaic's y axis) with an "N", in the
+/// upper right corner.
+fn draw_north_arrow(root: &Annotated<'_>, width_px: usize) -> Result<()> {
+    let x = width_px as i32 - 30;
+    let top = 12;
+    root.draw(&Rectangle::new(
+        [(x - 16, top - 4), (x + 16, top + 62)],
+        WHITE.mix(0.85).filled(),
+    ))
+    .map_err(plot_error)?;
+    root.draw(&Polygon::new(
+        vec![(x, top), (x - 9, top + 22), (x + 9, top + 22)],
+        BLACK.filled(),
+    ))
+    .map_err(plot_error)?;
+    root.draw(&PathElement::new(
+        [(x, top + 20), (x, top + 36)],
+        BLACK.stroke_width(3),
+    ))
+    .map_err(plot_error)?;
+    root.draw(&Text::new("N", (x - 6, top + 40), (FONT, 18)))
+        .map_err(plot_error)
+}
+
+/// The drawing area [`draw_over`] gives.
+type Annotated<'a> = DrawingArea<BitMapBackend<'a>, plotters::coord::Shift>;
 
 /// A one-pixel line by uniform sampling (the picture is large and the
 /// segments short; no need for anything smarter).
@@ -307,6 +392,39 @@ pub fn world_file(grid: &Grid) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn scale_bars_are_one_two_or_five_powers_of_ten() {
+        assert_eq!(nice_length_m(37.0), 20.0);
+        assert_eq!(nice_length_m(50.0), 50.0);
+        assert_eq!(nice_length_m(9.99), 5.0);
+        assert_eq!(nice_length_m(1.4), 1.0);
+        assert!((nice_length_m(0.3) - 0.2).abs() < 1e-12);
+    }
+
+    /// A 400 x 300 px mosaic at 0.25 m per pixel: the scale bar (20 m =
+    /// 80 px, black and white halves) sits in the lower left corner and
+    /// the north arrow in the upper right; a small picture gets neither.
+    #[test]
+    fn mosaic_carries_a_scale_bar_and_a_north_arrow() {
+        let grid = Grid::zeros(0.0, 0.0, 0.25, 400, 300);
+        let png = mosaic_png(&grid, &[]).unwrap();
+        let rgb = image::load_from_memory(&png).unwrap().to_rgb8();
+        let background = heat(0.0);
+        let is = |x: u32, y: u32, c: [u8; 3]| rgb.get_pixel(x, y).0 == c;
+        // The bar: 14 px from the left, its lower edge 14 px above the bottom.
+        assert!(is(20, 282, [0, 0, 0]), "{:?}", rgb.get_pixel(20, 282));
+        assert!(is(80, 282, [255, 255, 255]), "{:?}", rgb.get_pixel(80, 282));
+        // Outside the bar's box, the mosaic's own background.
+        assert!(is(150, 282, background));
+        // The arrow's black head, 30 px from the right edge.
+        assert!(is(370, 25, [0, 0, 0]), "{:?}", rgb.get_pixel(370, 25));
+        let small = Grid::zeros(0.0, 0.0, 0.25, 100, 80);
+        let rgb = image::load_from_memory(&mosaic_png(&small, &[]).unwrap())
+            .unwrap()
+            .to_rgb8();
+        assert!(rgb.pixels().all(|p| p.0 == background));
+    }
 
     #[test]
     fn images_land_at_their_poses_rotated() {
