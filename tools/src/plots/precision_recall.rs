@@ -22,7 +22,21 @@ pub struct PrCurve {
     pub best: Option<(f64, f64, f64)>,
 }
 
-/// Draws the curves on the unit square as a PNG of `size_px`.
+/// The precision axis: from just below the lowest precision drawn (on a
+/// multiple of 0.05, at most 0.95) to just above 1, so that curves whose
+/// precision stays near 1 use the plot's height.
+fn precision_axis(curves: &[PrCurve]) -> std::ops::Range<f64> {
+    let lowest = curves
+        .iter()
+        .flat_map(|c| c.points.iter().map(|p| p.1).chain(c.best.map(|b| b.1)))
+        .filter(|p| p.is_finite())
+        .fold(1.0, f64::min);
+    let bottom = (((lowest - 0.02) / 0.05).floor() * 0.05).clamp(0.0, 0.95);
+    bottom..1.0 + 0.02 * (1.0 - bottom)
+}
+
+/// Draws the curves as a PNG of `size_px`: recall on 0-1, precision on
+/// [`precision_axis`].
 pub fn precision_recall_png(
     curves: &[PrCurve],
     caption: &str,
@@ -34,7 +48,7 @@ pub fn precision_recall_png(
             .margin(16)
             .x_label_area_size(44)
             .y_label_area_size(56)
-            .build_cartesian_2d(0.0..1.02, 0.0..1.02)
+            .build_cartesian_2d(0.0..1.02, precision_axis(curves))
             .map_err(plot_error)?;
         draw_grid(&mut chart, "recall", "precision")?;
         for (k, curve) in curves.iter().enumerate() {
@@ -76,6 +90,21 @@ pub fn precision_recall_png(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn precision_axis_starts_just_below_the_lowest_precision() {
+        let curve = |points: Vec<(f64, f64)>| PrCurve {
+            label: "q".into(),
+            points,
+            best: None,
+        };
+        let high = precision_axis(&[curve(vec![(0.1, 1.0), (0.8, 0.975)])]);
+        assert!((high.start - 0.95).abs() < 1e-12 && high.end > 1.0, "{high:?}");
+        let low = precision_axis(&[curve(vec![(0.1, 1.0), (1.0, 0.31)])]);
+        assert!((low.start - 0.25).abs() < 1e-12, "{low:?}");
+        let none = precision_axis(&[curve(vec![(0.5, 0.0)])]);
+        assert_eq!(none.start, 0.0);
+    }
 
     #[test]
     fn curve_is_drawn_in_its_colour() {
