@@ -14,6 +14,19 @@ pub mod optimize;
 pub mod run;
 pub mod simulate;
 
+/// `-q`: no progress bar (set once by `main` before any command runs).
+static QUIET: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// Records the `-q` flag for the progress bars.
+pub fn set_quiet(quiet: bool) {
+    QUIET.store(quiet, std::sync::atomic::Ordering::Relaxed);
+}
+
+/// Whether `-q` was given.
+pub fn quiet() -> bool {
+    QUIET.load(std::sync::atomic::Ordering::Relaxed)
+}
+
 /// Sets the number of rayon worker threads of a pipeline command
 /// (`--threads`); `None` keeps rayon's default (one per core, or
 /// `RAYON_NUM_THREADS`).

@@ -13,6 +13,10 @@ struct Cli {
     /// More log output (-v info, -vv debug); RUST_LOG overrides.
     #[arg(short, long, action = clap::ArgAction::Count, global = true)]
     verbose: u8,
+    /// Errors only on stderr: no warnings, no progress bar (the results
+    /// printed on stdout and written to files are unchanged).
+    #[arg(short, long, global = true, conflicts_with = "verbose")]
+    quiet: bool,
     #[command(subcommand)]
     command: Command,
 }
@@ -46,11 +50,25 @@ enum Command {
     ErrorBudget(cmd::error_budget::Args),
     /// Simulate the built-in marina mission and run the whole pipeline on it.
     Demo(cmd::demo::Args),
+    /// Print a shell completion script for echofield.
+    #[command(after_help = COMPLETIONS_EXAMPLES)]
+    Completions {
+        /// The shell to complete in.
+        shell: clap_complete::Shell,
+    },
 }
+
+const COMPLETIONS_EXAMPLES: &str = "Examples:
+  # Bash, for the current user (bash-completion picks it up at the next login)
+  echofield completions bash > ~/.local/share/bash-completion/completions/echofield
+
+  # Zsh: a folder of your $fpath
+  echofield completions zsh > ~/.zfunc/_echofield";
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    init_logging(cli.verbose);
+    init_logging(cli.verbose, cli.quiet);
+    cmd::set_quiet(cli.quiet);
     let result = match cli.command {
         Command::Optimize(args) => cmd::optimize::run(args),
         Command::Convert(args) => cmd::convert::run(args),
@@ -65,6 +83,16 @@ fn main() -> ExitCode {
         Command::Eval(args) => cmd::eval::run(args),
         Command::EvalLoops(args) => cmd::eval_loops::run(args),
         Command::Demo(args) => cmd::demo::run(args),
+        Command::Completions { shell } => {
+            use clap::CommandFactory as _;
+            clap_complete::generate(
+                shell,
+                &mut Cli::command(),
+                "echofield",
+                &mut std::io::stdout(),
+            );
+            Ok(())
+        }
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -79,11 +107,12 @@ fn main() -> ExitCode {
     }
 }
 
-fn init_logging(verbose: u8) {
-    let default = match verbose {
-        0 => "warn",
-        1 => "info",
-        _ => "debug",
+fn init_logging(verbose: u8, quiet: bool) {
+    let default = match (quiet, verbose) {
+        (true, _) => "error",
+        (false, 0) => "warn",
+        (false, 1) => "info",
+        (false, _) => "debug",
     };
     let filter = tracing_subscriber::EnvFilter::try_from_default_env()
         .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(default));
@@ -144,9 +173,14 @@ mod tests {
         true
     }
 
+    /// Parses each line as echofield's arguments, up to a shell
+    /// redirection or pipe (`echofield completions bash > FILE`).
     fn parse_all(source: &str, lines: &[String]) {
         for line in lines {
-            if let Err(e) = Cli::try_parse_from(line.split_whitespace()) {
+            let words = line
+                .split_whitespace()
+                .take_while(|w| !matches!(*w, ">" | ">>" | "|" | "2>"));
+            if let Err(e) = Cli::try_parse_from(words) {
                 panic!("{source}: `{line}` does not parse:\n{e}");
             }
         }

@@ -143,6 +143,16 @@ fn a_suspect_run_writes_its_outputs_and_exits_with_the_suspect_status() {
     let allowed = run(&dir.path().join("allowed"), &["--allow-suspect"]);
     assert!(allowed.status.success(), "{allowed:?}");
     assert!(String::from_utf8_lossy(&allowed.stdout).contains("health: SUSPECT"));
+    // Rotations 0-12 precede the navigation: a warning, which `-q` keeps
+    // off stderr (the results on stdout stay).
+    assert!(
+        String::from_utf8_lossy(&allowed.stderr).contains("WARN"),
+        "{allowed:?}"
+    );
+    let quiet = run(&dir.path().join("quiet"), &["--allow-suspect", "-q"]);
+    assert!(quiet.status.success(), "{quiet:?}");
+    assert_eq!(String::from_utf8_lossy(&quiet.stderr), "");
+    assert!(String::from_utf8_lossy(&quiet.stdout).contains("health: SUSPECT"));
 }
 
 /// The status is documented where a user looks for it.
@@ -165,5 +175,32 @@ fn the_suspect_status_is_documented() {
     assert!(
         readme.contains(&format!("exits with status {status}")),
         "README"
+    );
+}
+
+/// `echofield completions SHELL` prints a completion script that knows
+/// the subcommands; `-q` and `-v` together are refused.
+#[test]
+fn completions_and_quiet_flag() {
+    let echofield = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_echofield"))
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let bash = echofield(&["completions", "bash"]);
+    assert!(bash.status.success(), "{bash:?}");
+    let script = String::from_utf8_lossy(&bash.stdout);
+    assert!(
+        script.contains("_echofield()") && script.contains("calibrate"),
+        "{script}"
+    );
+    let zsh = echofield(&["completions", "zsh"]);
+    assert!(String::from_utf8_lossy(&zsh.stdout).starts_with("#compdef echofield"));
+    let both = echofield(&["-q", "-v", "completions", "bash"]);
+    assert!(!both.status.success());
+    assert!(
+        String::from_utf8_lossy(&both.stderr).contains("cannot be used with"),
+        "{both:?}"
     );
 }

@@ -131,14 +131,14 @@ pub fn run(args: Args) -> Result<()> {
 }
 
 /// A progress bar over the nodes on stderr; hidden when stderr is not a
-/// terminal.
+/// terminal, and with `-q`.
 pub struct BarProgress {
     bar: ProgressBar,
 }
 
 impl BarProgress {
     pub fn new() -> Self {
-        let bar = if std::io::stderr().is_terminal() {
+        let bar = if std::io::stderr().is_terminal() && !super::quiet() {
             ProgressBar::new(0)
         } else {
             ProgressBar::hidden()

@@ -99,7 +99,10 @@ mod tests {
             best: None,
         };
         let high = precision_axis(&[curve(vec![(0.1, 1.0), (0.8, 0.975)])]);
-        assert!((high.start - 0.95).abs() < 1e-12 && high.end > 1.0, "{high:?}");
+        assert!(
+            (high.start - 0.95).abs() < 1e-12 && high.end > 1.0,
+            "{high:?}"
+        );
         let low = precision_axis(&[curve(vec![(0.1, 1.0), (1.0, 0.31)])]);
         assert!((low.start - 0.25).abs() < 1e-12, "{low:?}");
         let none = precision_axis(&[curve(vec![(0.5, 0.0)])]);
