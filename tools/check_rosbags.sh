@@ -26,7 +26,8 @@ work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
 
 "$venv/bin/python" "$here/check_rosbags.py" "$here/ros/echofield_msgs/msg/SonarBeam.msg" "$work/bag"
-"$echofield" run "$work/bag/bag.mcap" --output "$work/run" -q >/dev/null
+# The rosbag2 folder itself (metadata.yaml + MCAP storage).
+"$echofield" run "$work/bag" --output "$work/run" -q
 "$venv/bin/python" - "$work/run/report.json" <<'PY'
 import json, sys
 r = json.load(open(sys.argv[1]))

@@ -37,7 +37,12 @@
 //!   echofield topic are errors that name the file, the message (index in file
 //!   order, from 0, with its topic) and the field. Bad input never panics.
 //! - Channels the reader does not know (cameras, `/tf`, Foxglove outputs) are
-//!   skipped. Two channels that map to the same stream are an error.
+//!   skipped. A stream is fed by the topic chosen for it
+//!   ([`TopicChoice`], `--topic ROLE=/name`), or else by the only topic of
+//!   a type it reads; several such topics without a choice are an error
+//!   that names them. [`read_mission_with`] says what became of every
+//!   channel ([`ChannelUse`]) and also reads rosbag2 folders with MCAP
+//!   storage ([`rosbag2`]).
 //!
 //! # Example
 //!
@@ -68,10 +73,11 @@ pub mod foxglove;
 pub mod json;
 mod reader;
 pub mod ros2;
+pub mod rosbag2;
 mod validate;
 mod writer;
 
-pub use reader::read_mission;
+pub use reader::{ChannelUse, ROLES, TopicChoice, read_mission, read_mission_with};
 pub use ros2::{Ros2GroundTruth, write_mission_ros2};
 pub use writer::{CompletedMcap, MissionWriter};
 

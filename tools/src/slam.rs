@@ -98,9 +98,31 @@ pub struct NoProgress;
 
 impl ProgressSink for NoProgress {}
 
-/// Reads a mission: an echofield (or ROS 2) MCAP file, or a St Pere log
-/// folder (which must hold the raw beams, `_IS.log`).
+/// Reads a mission: an echofield (or ROS 2) MCAP file, a rosbag2 folder
+/// (`metadata.yaml`, MCAP storage), or a St Pere log folder (which must hold
+/// the raw beams, `_IS.log`).
 pub fn load_mission(path: &Path) -> Result<Mission> {
+    load_mission_choosing(path, &mcap::TopicChoice::default()).map(|(m, _)| m)
+}
+
+/// [`load_mission`] with the topics of a ROS 2 recording chosen by
+/// `topics` (`--topic ROLE=/name`); also returns what became of each
+/// channel of a ROS 2 or echofield MCAP input (empty for St Pere logs).
+pub fn load_mission_choosing(
+    path: &Path,
+    topics: &mcap::TopicChoice,
+) -> Result<(Mission, Vec<mcap::ChannelUse>)> {
+    let ros = path.is_file() || mcap::rosbag2::is_rosbag2(path);
+    if ros {
+        // Its errors name the file already.
+        return Ok(mcap::read_mission_with(path, topics)?);
+    }
+    if topics.topics.iter().any(Option::is_some) {
+        bail!(
+            "--topic applies to ROS 2 recordings (an MCAP file or a rosbag2 folder), and {} is neither",
+            path.display()
+        );
+    }
     let mission = if path.is_dir() {
         let logs = stpere::read_stpere_dir(path)
             .with_context(|| format!("reading the St Pere logs in {}", path.display()))?;
@@ -114,16 +136,13 @@ pub fn load_mission(path: &Path) -> Result<Mission> {
             );
         }
         logs.mission
-    } else if path.is_file() {
-        mcap::read_mission(path)
-            .with_context(|| format!("reading the MCAP mission {}", path.display()))?
     } else {
         bail!(
-            "{} is neither an MCAP file nor a St Pere log folder",
+            "{} is neither an MCAP file, a rosbag2 folder nor a St Pere log folder",
             path.display()
         );
     };
-    Ok(mission)
+    Ok((mission, Vec::new()))
 }
 
 /// The sweep a reader of point sets assumes when nothing says otherwise:

@@ -204,3 +204,56 @@ fn completions_and_quiet_flag() {
         "{both:?}"
     );
 }
+
+/// A ROS 2 recording as a rosbag2 folder (MCAP storage): `run` reads it,
+/// lists what it did with each topic, and takes `--topic` choices.
+#[test]
+fn a_rosbag2_folder_runs_and_its_topics_are_listed() {
+    use echofield_datasets::mcap::{Ros2GroundTruth, read_mission, write_mission_ros2};
+    let dir = tempfile::tempdir().unwrap();
+    let mission = read_mission(&simulated_tank(dir.path(), "3")).unwrap();
+    let bag = dir.path().join("tank_bag");
+    std::fs::create_dir(&bag).unwrap();
+    write_mission_ros2(
+        &bag.join("tank_bag_0.mcap"),
+        &mission,
+        Ros2GroundTruth::Odometry,
+    )
+    .unwrap();
+    std::fs::write(
+        bag.join("metadata.yaml"),
+        "rosbag2_bagfile_information:\n  storage_identifier: mcap\n  relative_file_paths:\n  - tank_bag_0.mcap\n",
+    )
+    .unwrap();
+    let run = |extra: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_echofield"))
+            .arg("run")
+            .arg(&bag)
+            .arg("--output")
+            .arg(dir.path().join("out"))
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let plain = run(&["--allow-suspect"]);
+    assert!(plain.status.success(), "{plain:?}");
+    let stdout = String::from_utf8_lossy(&plain.stdout);
+    assert!(
+        stdout.contains("topic /sonar/beam (echofield_msgs/msg/SonarBeam,")
+            && stdout.contains("used as sonar: the only topic of its type"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("ATE RMSE"), "{stdout}");
+    let chosen = run(&[
+        "--allow-suspect",
+        "--topic",
+        "ground_truth=/ground_truth/odom",
+    ]);
+    assert!(String::from_utf8_lossy(&chosen.stdout).contains("chosen with --topic ground_truth"));
+    let wrong = run(&["--topic", "dvl=/imu/data"]);
+    assert!(!wrong.status.success());
+    assert!(
+        String::from_utf8_lossy(&wrong.stderr).contains("sensor_msgs/msg/Imu"),
+        "{wrong:?}"
+    );
+}

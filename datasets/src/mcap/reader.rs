@@ -65,14 +65,79 @@ impl Decoder {
 /// nothing in the file says where the sonar head sits, and the pipeline
 /// warns about it.
 pub fn read_mission(path: &Path) -> Result<Mission, DatasetError> {
-    let file = File::open(path).map_err(|e| DatasetError::io(path, e))?;
-    let len = file
-        .metadata()
-        .map_err(|e| DatasetError::io(path, e))?
-        .len();
-    let mut state = State::new(path);
-    container::for_each_record(path, file, len, |record| state.on_record(record))?;
+    read_mission_with(path, &TopicChoice::default()).map(|(mission, _)| mission)
+}
+
+/// [`read_mission`] with the topics of each stream chosen by `choice`
+/// (`--topic ROLE=/name`), also from a rosbag2 folder (`metadata.yaml`
+/// with MCAP storage: its files in order); returns what became of every
+/// channel. A stream fed by several topics of a supported type needs a
+/// choice: without one it is an error that names them.
+pub fn read_mission_with(
+    path: &Path,
+    choice: &TopicChoice,
+) -> Result<(Mission, Vec<ChannelUse>), DatasetError> {
+    let files = if path.is_dir() {
+        super::rosbag2::mcap_files(path)?
+    } else {
+        vec![path.to_path_buf()]
+    };
+    let mut state = State::new(path, choice);
+    for file_path in &files {
+        let file = File::open(file_path).map_err(|e| DatasetError::io(file_path, e))?;
+        let len = file
+            .metadata()
+            .map_err(|e| DatasetError::io(file_path, e))?
+            .len();
+        state.start_file(file_path);
+        container::for_each_record(file_path, file, len, |record| state.on_record(record))?;
+    }
     state.finish()
+}
+
+/// The roles a topic can be chosen for, as `--topic ROLE=/name` names them,
+/// in [`Stream`] order.
+pub const ROLES: [&str; 4] = ["sonar", "dvl", "heading", "ground_truth"];
+
+/// The topic chosen for each stream (`None`: by message type, when only
+/// one topic carries it).
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct TopicChoice {
+    /// Indexed like [`ROLES`].
+    pub topics: [Option<String>; 4],
+}
+
+impl TopicChoice {
+    /// Records one `ROLE=/name` assignment; errors name what is wrong.
+    pub fn assign(&mut self, text: &str) -> Result<(), String> {
+        let (role, topic) = text
+            .split_once('=')
+            .ok_or_else(|| format!("`{text}` is not ROLE=/topic"))?;
+        let index = ROLES
+            .iter()
+            .position(|r| *r == role.trim().replace('-', "_"))
+            .ok_or_else(|| format!("unknown role `{role}` (roles: {})", ROLES.join(", ")))?;
+        let topic = topic.trim();
+        if topic.is_empty() {
+            return Err(format!("`{text}`: the topic is empty"));
+        }
+        self.topics[index] = Some(topic.to_string());
+        Ok(())
+    }
+}
+
+/// What the reader did with one channel (topic) of the input.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ChannelUse {
+    pub topic: String,
+    /// Its schema (message type) name; empty without a schema.
+    pub schema: String,
+    /// The role it fed ([`ROLES`]), or `None` when skipped.
+    pub role: Option<&'static str>,
+    /// Why it was used or skipped.
+    pub reason: String,
+    /// Messages of the channel in the input.
+    pub messages: u64,
 }
 
 struct Channel {
@@ -80,34 +145,56 @@ struct Channel {
     decoder: Option<Decoder>,
 }
 
-struct State {
-    path: PathBuf,
-    /// schema id -> (name, encoding)
-    schemas: HashMap<u16, (String, String)>,
-    channels: HashMap<u16, Channel>,
-    /// The topic that feeds each stream.
-    stream_topics: [Option<String>; 4],
+/// A topic seen in the input, with the records decoded from it when its
+/// type feeds a stream (kept until [`State::finish`] chooses the topic of
+/// each stream).
+struct Topic {
+    schema: String,
+    decoder: Option<Decoder>,
     messages: u64,
-    metadata: Option<(String, SensorMounting)>,
-    mission: Mission,
+    records: Vec<Decoded>,
 }
 
-impl State {
-    fn new(path: &Path) -> Self {
+struct State<'c> {
+    path: PathBuf,
+    /// The file being read (a rosbag2 folder has several).
+    file: PathBuf,
+    choice: &'c TopicChoice,
+    /// schema id -> (name, encoding), of the current file.
+    schemas: HashMap<u16, (String, String)>,
+    /// channel id -> channel, of the current file.
+    channels: HashMap<u16, Channel>,
+    /// Every topic by name, in the order first seen.
+    topics: Vec<(String, Topic)>,
+    messages: u64,
+    metadata: Option<(String, SensorMounting)>,
+}
+
+impl<'c> State<'c> {
+    fn new(path: &Path, choice: &'c TopicChoice) -> Self {
         Self {
             path: path.to_path_buf(),
+            file: path.to_path_buf(),
+            choice,
             schemas: HashMap::new(),
             channels: HashMap::new(),
-            stream_topics: Default::default(),
+            topics: Vec::new(),
             messages: 0,
             metadata: None,
-            mission: Mission::default(),
         }
+    }
+
+    /// Schema and channel ids are per file.
+    fn start_file(&mut self, file: &Path) {
+        self.file = file.to_path_buf();
+        self.schemas.clear();
+        self.channels.clear();
+        self.messages = 0;
     }
 
     fn format_error(&self, message: String) -> DatasetError {
         DatasetError::Format {
-            path: self.path.clone(),
+            path: self.file.clone(),
             message,
         }
     }
@@ -150,19 +237,16 @@ impl State {
         };
         let decoder = classify(&channel.topic, &channel.message_encoding, schema)
             .map_err(|message| self.format_error(message))?;
-        if let Some(decoder) = decoder {
-            let slot = &mut self.stream_topics[decoder.stream() as usize];
-            if let Some(other) = slot {
-                return Err(DatasetError::Format {
-                    path: self.path.clone(),
-                    message: format!(
-                        "topics `{other}` and `{}` both carry {}; keep one of them in the file",
-                        channel.topic,
-                        STREAM_NAMES[decoder.stream() as usize]
-                    ),
-                });
-            }
-            *slot = Some(channel.topic.clone());
+        if !self.topics.iter().any(|(t, _)| *t == channel.topic) {
+            self.topics.push((
+                channel.topic.clone(),
+                Topic {
+                    schema: schema.map(|s| s.0.clone()).unwrap_or_default(),
+                    decoder,
+                    messages: 0,
+                    records: Vec::new(),
+                },
+            ));
         }
         self.channels.insert(
             channel.id,
@@ -186,7 +270,13 @@ impl State {
                 "message {index} refers to channel id {channel_id} which has no Channel record before it"
             )));
         };
-        let Some(decoder) = channel.decoder else {
+        let topic = channel.topic.clone();
+        let decoder = channel.decoder;
+        let Some((_, entry)) = self.topics.iter_mut().find(|(t, _)| *t == topic) else {
+            return Ok(());
+        };
+        entry.messages += 1;
+        let Some(decoder) = decoder else {
             return Ok(());
         };
         let decoded = match decoder {
@@ -199,17 +289,9 @@ impl State {
             Decoder::Ros2(kind) => ros2::decode(kind, data, log_time_ns),
         };
         let decoded = decoded.map_err(|e: FieldError| {
-            e.at(
-                &self.path,
-                format!("message {index} (topic `{}`)", channel.topic),
-            )
+            e.at(&self.file, format!("message {index} (topic `{topic}`)"))
         })?;
-        match decoded {
-            Decoded::Beam(b) => self.mission.beams.push(b),
-            Decoded::Dvl(d) => self.mission.dvl.push(d),
-            Decoded::Attitude(a) => self.mission.attitude.push(a),
-            Decoded::GroundTruth(g) => self.mission.ground_truth.push(g),
-        }
+        entry.records.push(decoded);
         Ok(())
     }
 
@@ -242,20 +324,52 @@ impl State {
         Ok(())
     }
 
-    fn finish(self) -> Result<Mission, DatasetError> {
-        let mut mission = self.mission;
-        if self.metadata.is_none() && self.stream_topics.iter().all(Option::is_none) {
-            let topics: Vec<&str> = self.channels.values().map(|c| c.topic.as_str()).collect();
+    fn finish(self) -> Result<(Mission, Vec<ChannelUse>), DatasetError> {
+        let chosen = self.choose_topics()?;
+        if self.metadata.is_none() && chosen.iter().all(Option::is_none) {
             return Err(DatasetError::Missing {
-                path: self.path,
                 what: format!(
-                    "echofield or ROS 2 mission channels (topics in the file: {})",
-                    if topics.is_empty() {
-                        "none".to_string()
-                    } else {
-                        topics.join(", ")
-                    }
+                    "echofield or ROS 2 mission channels (topics in the input: {}; read types: {})",
+                    self.topic_list(),
+                    supported_types(None)
                 ),
+                path: self.path,
+            });
+        }
+        let mut mission = Mission::default();
+        let mut uses = Vec::with_capacity(self.topics.len());
+        for (name, topic) in self.topics {
+            let stream = topic.decoder.map(Decoder::stream);
+            let used = stream.filter(|s| chosen[*s as usize].as_deref() == Some(name.as_str()));
+            let reason = match (stream, used) {
+                (Some(s), Some(_)) if self.choice.topics[s as usize].is_some() => {
+                    format!("chosen with --topic {}", ROLES[s as usize])
+                }
+                (Some(_), Some(_)) => "the only topic of its type".to_string(),
+                (Some(s), None) => format!(
+                    "another topic feeds the {} (`{}`)",
+                    STREAM_NAMES[s as usize],
+                    chosen[s as usize].as_deref().unwrap_or("")
+                ),
+                (None, _) if topic.schema.is_empty() => "no schema".to_string(),
+                (None, _) => format!("type `{}` is not one echofield reads", topic.schema),
+            };
+            if used.is_some() {
+                for record in topic.records {
+                    match record {
+                        Decoded::Beam(b) => mission.beams.push(b),
+                        Decoded::Dvl(d) => mission.dvl.push(d),
+                        Decoded::Attitude(a) => mission.attitude.push(a),
+                        Decoded::GroundTruth(g) => mission.ground_truth.push(g),
+                    }
+                }
+            }
+            uses.push(ChannelUse {
+                topic: name,
+                schema: topic.schema,
+                role: used.map(|s| ROLES[s as usize]),
+                reason,
+                messages: topic.messages,
             });
         }
         match self.metadata {
@@ -294,8 +408,100 @@ impl State {
         mission
             .ground_truth
             .sort_by(|a, b| a.stamp_s.total_cmp(&b.stamp_s));
-        Ok(mission)
+        Ok((mission, uses))
     }
+
+    /// The topic of each stream: the chosen one (which must exist and be of
+    /// a type of its stream), or the only topic of a type of the stream.
+    fn choose_topics(&self) -> Result<[Option<String>; 4], DatasetError> {
+        let mut chosen: [Option<String>; 4] = Default::default();
+        for (s, slot) in chosen.iter_mut().enumerate() {
+            let candidates: Vec<&str> = self
+                .topics
+                .iter()
+                .filter(|(_, t)| t.decoder.map(|d| d.stream() as usize) == Some(s))
+                .map(|(n, _)| n.as_str())
+                .collect();
+            let role = ROLES[s];
+            *slot = match &self.choice.topics[s] {
+                Some(wanted) if candidates.contains(&wanted.as_str()) => Some(wanted.clone()),
+                Some(wanted) => {
+                    let message = match self.topics.iter().find(|(n, _)| n == wanted) {
+                        Some((_, t)) => format!(
+                            "--topic {role}={wanted}: the topic carries `{}`, which is not a {} type echofield reads ({})",
+                            t.schema,
+                            STREAM_NAMES[s],
+                            supported_types(Some(s))
+                        ),
+                        None => format!(
+                            "--topic {role}={wanted}: no such topic (topics in the input: {})",
+                            self.topic_list()
+                        ),
+                    };
+                    return Err(DatasetError::Format {
+                        path: self.path.clone(),
+                        message,
+                    });
+                }
+                None if candidates.len() > 1 => {
+                    return Err(DatasetError::Format {
+                        path: self.path.clone(),
+                        message: format!(
+                            "topics `{}` all carry {}: choose one with --topic {role}=/name",
+                            candidates.join("`, `"),
+                            STREAM_NAMES[s]
+                        ),
+                    });
+                }
+                None => candidates.first().map(|t| t.to_string()),
+            };
+        }
+        Ok(chosen)
+    }
+
+    /// Every topic with its type, for messages.
+    fn topic_list(&self) -> String {
+        if self.topics.is_empty() {
+            return "none".to_string();
+        }
+        let list: Vec<String> = self
+            .topics
+            .iter()
+            .map(|(n, t)| {
+                format!(
+                    "{n} ({})",
+                    if t.schema.is_empty() {
+                        "no schema"
+                    } else {
+                        &t.schema
+                    }
+                )
+            })
+            .collect();
+        list.join(", ")
+    }
+}
+
+/// The message types read for stream `s` (every stream with `None`).
+fn supported_types(s: Option<usize>) -> String {
+    let json = [
+        json::BEAM_SCHEMA_NAME,
+        json::DVL_SCHEMA_NAME,
+        json::ATTITUDE_SCHEMA_NAME,
+        json::GROUND_TRUTH_SCHEMA_NAME,
+    ];
+    let mut names: Vec<&str> = Vec::new();
+    for (k, name) in json.iter().enumerate() {
+        if s.is_none_or(|s| s == k) {
+            names.push(name);
+        }
+    }
+    for kind in Ros2Kind::ALL {
+        if s.is_none_or(|s| Decoder::Ros2(kind).stream() as usize == s) {
+            names.push(kind.schema_name());
+        }
+    }
+    names.join(", ")
 }
 
 /// A warning when some of `stamps` (one stream's records in file order)

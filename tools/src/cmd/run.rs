@@ -7,8 +7,10 @@ use anyhow::{Context, Result};
 use echofield::output::folder::OutputFolder;
 use echofield::slam::outputs::{FOLDER_FILES, write_output_files};
 use echofield::slam::{
-    ProgressSink, RunInfo, SlamConfig, load_mission_with_keyframes, run_mission,
+    ProgressSink, RunInfo, SlamConfig, load_mission_choosing, load_mission_with_keyframes,
+    run_mission,
 };
+use echofield_datasets::mcap::{ChannelUse, TopicChoice};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -29,6 +31,11 @@ Examples:
   # mounting that `echofield calibrate` estimated
   echofield run datasets/stpere-marina --keyframes datasets/stpere-marina-sonar \
     --config cal.toml --output out/stpere-real
+
+  # A ROS 2 recording (rosbag2 folder, MCAP storage) with two odometry
+  # topics: the one to evaluate against is chosen; the run lists every topic
+  # it used or skipped, and why
+  echofield run my_bag --topic ground_truth=/gps/odom --output out/bag
 
   # Make a mission to try it on
   echofield simulate --scenario marina --seed 1 --output marina.mcap
@@ -53,8 +60,14 @@ ground truth).";
 #[derive(Debug, clap::Args)]
 #[command(after_help = EXAMPLES)]
 pub struct Args {
-    /// The mission: an MCAP file, or a St Pere log folder.
+    /// The mission: an MCAP file (echofield's or a ROS 2 recording), a
+    /// rosbag2 folder (MCAP storage), or a St Pere log folder.
     pub mission: PathBuf,
+    /// ROS 2 input: the topic that feeds a stream, as ROLE=/name (roles:
+    /// sonar, dvl, heading, ground_truth); repeat for several. A stream
+    /// with one topic of a type echofield reads needs none.
+    #[arg(long = "topic", value_name = "ROLE=/NAME", value_parser = parse_topic)]
+    pub topics: Vec<(usize, String)>,
     /// Pipeline configuration (TOML); defaults for missing keys.
     #[arg(long)]
     pub config: Option<PathBuf>,
@@ -80,6 +93,38 @@ pub struct Args {
     pub allow_suspect: bool,
 }
 
+/// `ROLE=/name` of `--topic`: the role's index in [`ROLES`] and the topic.
+fn parse_topic(text: &str) -> Result<(usize, String), String> {
+    let mut choice = TopicChoice::default();
+    choice.assign(text)?;
+    let role = choice.topics.iter().position(Option::is_some).unwrap_or(0);
+    Ok((role, choice.topics[role].take().unwrap_or_default()))
+}
+
+/// What became of each channel of a ROS 2 recording, one line each.
+fn print_channels(channels: &[ChannelUse]) {
+    // echofield's own files have one known channel per stream: nothing to say.
+    if channels.iter().all(|c| c.schema.starts_with("echofield.")) {
+        return;
+    }
+    for c in channels {
+        let role = c
+            .role
+            .map_or("skipped".to_string(), |r| format!("used as {r}"));
+        println!(
+            "topic {} ({}, {} messages): {role}: {}",
+            c.topic,
+            if c.schema.is_empty() {
+                "no schema"
+            } else {
+                &c.schema
+            },
+            c.messages,
+            c.reason
+        );
+    }
+}
+
 pub fn run(args: Args) -> Result<()> {
     let mut inputs = vec![args.mission.as_path()];
     inputs.extend(args.keyframes.as_deref());
@@ -89,11 +134,21 @@ pub fn run(args: Args) -> Result<()> {
     // Before any work: a folder that cannot be written fails now.
     let folder = OutputFolder::prepare(&args.output, FOLDER_FILES)?;
     let start = Instant::now();
-    let mission = load_mission_with_keyframes(
-        &args.mission,
-        args.keyframes.as_deref(),
-        config.mounting.sweep,
-    )?;
+    let mission = if args.keyframes.is_some() {
+        load_mission_with_keyframes(
+            &args.mission,
+            args.keyframes.as_deref(),
+            config.mounting.sweep,
+        )?
+    } else {
+        let mut choice = TopicChoice::default();
+        for (role, topic) in &args.topics {
+            choice.topics[*role] = Some(topic.clone());
+        }
+        let (mission, channels) = load_mission_choosing(&args.mission, &choice)?;
+        print_channels(&channels);
+        mission
+    };
     let reading_s = start.elapsed().as_secs_f64();
     let progress = BarProgress::new();
     let mut output = run_mission(&mission, &config, &progress)
