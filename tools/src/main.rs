@@ -149,7 +149,11 @@ mod tests {
 
     fn parse_all(source: &str, lines: &[String]) {
         for line in lines {
-            if let Err(e) = Cli::try_parse_from(line.split_whitespace()) {
+            // The shell's redirection or pipe ends the command's arguments.
+            let words = line
+                .split_whitespace()
+                .take_while(|w| !matches!(*w, ">" | ">>" | "|" | "2>"));
+            if let Err(e) = Cli::try_parse_from(words) {
                 panic!("{source}: `{line}` does not parse:\n{e}");
             }
         }

@@ -5,10 +5,13 @@ use clap::Parser;
 
 #[derive(Debug, Parser)]
 #[command(after_help = "Examples:
-  echofield config > my.toml                  every key, documented; edit and pass with --config
-  echofield config --section loops            one section (with its sub-tables)
-  echofield config --section loops.max_window one sub-table
-  echofield config --list-keys | wc -l        how many keys have a default")]
+  # every key, documented: edit the file and pass it to run --config
+  echofield config > my.toml
+  # one section with its sub-tables, or one sub-table
+  echofield config --section loops
+  echofield config --section loops.max_window
+  # how many keys have a default
+  echofield config --list-keys | wc -l")]
 pub struct Args {
     /// Print only this section (`loops`) or sub-table (`loops.max_window`).
     #[arg(long, value_name = "NAME")]
