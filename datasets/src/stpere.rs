@@ -27,9 +27,9 @@
 //! The MTi yaw needs a constant correction to match the DGPS track
 //! (compass deviation of the vehicle and/or mounting). In echofield's
 //! convention the correction is **added** to the yaw: [`best_yaw_offset`]
-//! finds +19.4° on the marina mission ([`MARINA_YAW_OFFSET_RAD`]): dead
-//! reckoning then has 3.6 m mean and 12.5 m max error against DGPS over
-//! 55.7 min; ±5° off gives 9-12 m mean, no offset 37 m mean / 88 m max. In the
+//! finds +19.4° on the marina mission ([`MARINA_YAW_OFFSET_RAD`]; dead
+//! reckoning against DGPS with and without it: EXPERIMENTS.md § St Pere data).
+//! In the
 //! compass convention (clockwise from north) this is the "about −20°" of the
 //! logs' README. The DVL's own compass reads 25.3° more than the MTi yaw (in
 //! this convention), so it would need about −5.9°. [`read_stpere_dir`]

@@ -96,45 +96,17 @@ fn match_one(c: &mut Criterion) {
             })
         });
     }
-    // The widest window without the second-peak search (the quality's
-    // `second_peak_ratio`, which the pipeline does not compute): that
-    // search resumes the branch and bound outside the best peak's
-    // neighbourhood, and over this window it evaluates about 5x the nodes
-    // of the first one.
-    let no_second = MatcherConfig {
-        second_peak: false,
-        ..MatcherConfig::default()
-    };
-    let widest = SearchWindow::new(5.0, 5.0, 20.0_f64.to_radians());
-    group.bench_function("window_5m_20deg_without_second_peak", |bench| {
-        bench.iter(|| {
-            match_scan(
-                black_box(&b.wall_points),
-                &image,
-                &prior,
-                &widest,
-                &no_second,
-            )
-            .unwrap()
-        })
-    });
-    // The SLAM pipeline's setting (sub-cell pose from the quadratic peak,
-    // no second peak) over a loop candidate's smallest window.
-    let pipeline = MatcherConfig {
-        refine_iterations: 0,
-        second_peak: false,
-        ..MatcherConfig::default()
-    };
+    // The SLAM pipeline's setting over a loop candidate's smallest window.
     let small = SearchWindow::new(0.5, 0.5, 3.0_f64.to_radians());
     group.bench_function("pipeline_window_0.5m_3deg", |bench| {
         bench.iter(|| {
-            match_scan(black_box(&b.wall_points), &image, &prior, &small, &pipeline).unwrap()
+            match_scan(black_box(&b.wall_points), &image, &prior, &small, &config).unwrap()
         })
     });
     // The same with the local climb of loop densification.
     group.bench_function("pipeline_local_0.5m_3deg", |bench| {
         bench.iter(|| {
-            match_scan_local(black_box(&b.wall_points), &image, &prior, &small, &pipeline).unwrap()
+            match_scan_local(black_box(&b.wall_points), &image, &prior, &small, &config).unwrap()
         })
     });
     group.finish();

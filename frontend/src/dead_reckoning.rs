@@ -111,11 +111,9 @@ pub struct DeadReckoningConfig {
     /// not used (bottom-lock outliers: the real St Pere DVL has isolated
     /// 0.5-0.7 m/s errors). A χ² quantile with 2 degrees of freedom;
     /// default 20 (p = 4.5e-5: about 4.5 standard deviations, only gross
-    /// errors). The tighter 13.82 (p = 0.001) also rejects the heavy tail
-    /// of good samples when the vehicle manoeuvres against the
-    /// constant-velocity model: on the St Pere replay it gave a worse
-    /// dead reckoning (3.8 m ATE instead of 3.1 m) and SLAM (0.35 m
-    /// instead of 0.32 m); 30 let outliers through (0.38 m). 0 turns the
+    /// errors). The tighter 13.82 (p = 0.001) also rejects the heavy tail of
+    /// good samples when the vehicle manoeuvres against the constant-velocity
+    /// model (measured: EXPERIMENTS.md § Dead reckoning). 0 turns the
     /// gate off.
     pub dvl_gate_chi2: f64,
     /// After this many consecutive gated-out samples the next one is used
@@ -135,10 +133,9 @@ pub struct DeadReckoningConfig {
     /// body axis, in m/s² per √Hz (= m/s per √s: over `t` seconds the true
     /// velocity wanders by about `value · √t`). Small values trust the
     /// velocity to stay constant and average more DVL samples; large ones
-    /// follow each sample. Default 0.03 (about 0.1 m/s in 10 s): on the
-    /// real St Pere navigation smaller values lag the vehicle's
-    /// manoeuvres (0.015 gives 4.6 m mean error against DGPS instead of
-    /// 3.6 m), larger ones distort rotations more on simulated missions.
+    /// follow each sample. Default 0.03 (about 0.1 m/s in 10 s): smaller values
+    /// lag the real St Pere vehicle's manoeuvres, larger ones distort rotations
+    /// more on simulated missions (measured: EXPERIMENTS.md § Dead reckoning).
     pub velocity_random_walk_mps_per_sqrt_s: f64,
     /// Standard deviation of one heading measurement, rad. Default 0.02.
     pub heading_noise_rad: f64,
@@ -152,8 +149,7 @@ pub struct DeadReckoningConfig {
     /// exceeds `yaw_rate_noise_radps` (method in
     /// `dead_reckoning/gyro_check.rs`). A gyro with a bias or a scale error
     /// then no longer drags the heading away from the headings in turns
-    /// (the real St Pere MTi: 0.040 rad/s instead of 0.01, and the
-    /// replay's loop precision 0.979-0.984 → 0.988-0.993). 0 turns the
+    /// (the real St Pere MTi is such a unit: README.md § Accuracy). 0 turns the
     /// check off. Default 1.
     pub yaw_rate_check_window_s: f64,
     /// Yaw acceleration noise of the model: the square root of the white

@@ -153,29 +153,10 @@ impl Default for ImageConfig {
 /// peak that moves it by at most half a lattice step, reads this raster
 /// ([`crate::matcher`]).
 ///
-/// Measured on the whole pipeline (`tools/configs/default.toml`, one
-/// thread; marina seeds 1-10, St Pere seeds 1-6), the last three rows with
-/// `loops.escalate_window_factor` 3 (in a prototype without it the St
-/// Pere recall fell to 0.886; the escalation alone, without the pose fit,
-/// left the marina as it was and gave St Pere 0.203 m):
-///
-/// | pose fit | marina ATE, mean | marina 5x missed | St Pere ATE, mean | St Pere recall | precision, marina / St Pere |
-/// |---|---|---|---|---|---|
-/// | none (the image itself) | 0.336 m | seeds 2, 5, 8 | 0.194 m | 0.912-0.924 | 0.965-0.994 / 0.982-0.987 |
-/// | margin 10, smoothing 3, ≤ 1 step | 0.302 m | seed 5 | 0.198 m | 0.908-0.921 | 0.981-0.997 / 0.976-0.985 |
-/// | margin 10, smoothing 1, ≤ 1 step | 0.288 m | seed 5 | 0.184 m | 0.909-0.925 | 0.981-0.999 / 0.977-0.986 |
-/// | margin 10, smoothing 1, ≤ ½ step (default) | 0.293 m | seeds 5, 8 | 0.186 m | 0.913-0.929 | 0.978-0.997 / 0.979-0.984 |
-///
-/// Per seed the figures move by a few centimetres with any change (the
-/// loops a run accepts early steer what it searches later); the means and
-/// the precision carry the comparison. The cost: the second raster is
-/// painted in the same sweep as the first ([`raster::rasterise_pair`]):
-/// building one 200-beam image takes 4.1 ms instead of 2.8 ms
-/// (`cargo bench -p echofield-frontend --bench matcher -- build_image`),
-/// a match 16 µs more (172 against 156 µs in the pipeline's window), and
-/// the St Pere-length run 2.86 s instead of 2.39 s (`cargo bench -p
-/// echofield --bench pipeline`), with 940 MB of memory at its peak
-/// instead of 680 MB (4 more bytes per cell and rotation).
+/// The cost: the second raster is painted in the same sweep as the first
+/// ([`raster::rasterise_pair`]), holds 4 more bytes per cell and rotation, and
+/// the pose fit reads it once per match. Accuracy and cost, measured:
+/// EXPERIMENTS.md § Pose-fit raster.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct PoseFitRaster {
@@ -337,8 +318,8 @@ pub struct AcousticImage {
     /// ([`ImageConfig::pose_fit`]). Quantised: only the last, sub-cell
     /// step of a match reads it, so its `u16` cells cost no measurable
     /// time and halve its memory, while the search's `grid` stays `f32`
-    /// (converting cells in the search's inner loops cost 5-10% of a
-    /// match).
+    /// (converting cells in the search's inner loops was slower:
+    /// EXPERIMENTS.md § Speed notes).
     fit_grid: Option<QuantisedGrid>,
     /// The largest value of the grid (0 for an empty image).
     max_value: f32,

@@ -5,23 +5,18 @@
 //!
 //! `s(x) = Σ_i I_j(x ⊕ p_i)`  (eq. 5),   `x* = argmax_x s(x)`  (eq. 6).
 //!
-//! [`match_scan`] searches the window that the prior allows in four steps:
+//! [`match_scan`] searches the window that the prior allows in three steps:
 //! 1. [`search`]: branch-and-bound over a discretised window (cells in x and
 //!    y, an angle step that moves a point at the scan's RMS range by one
 //!    cell, the step of the covariance fit too), exact for
 //!    the score on the raster, with the max-pooled image pyramid as bounds;
-//!    the search then resumes to find the best pose *separated* from the
-//!    winner; [`match_scan_local`] climbs from the prior to the nearest
-//!    lattice maximum instead, for priors already close to the answer;
-//! 2. [`refine`]: Nelder-Mead from the best lattice pose on the score with `I`
-//!    interpolated from the samples ([`AcousticImage::fine_value_at`]): the
-//!    raster's bilinear lookup peaks on cell centres, so an estimate taken
-//!    from it snaps towards them by up to half a cell;
-//! 3. [`covariance`]: a quadratic fit of the raster score around `x*` and a
-//!    Laplace approximation give the covariance. With the refinement off
-//!    (`refine_iterations = 0`), the fitted quadratic's peak (a Newton step
-//!    of at most one lattice step) is the sub-cell estimate instead;
-//! 4. the pose fit: the same quadratic fit, on the image's pose-fit raster
+//!    [`match_scan_local`] climbs from the prior to the nearest lattice
+//!    maximum instead, for priors already close to the answer;
+//! 2. [`covariance`]: a quadratic fit of the raster score around the best
+//!    lattice pose and a Laplace approximation give the covariance, and the
+//!    fitted quadratic's peak (a Newton step of at most one lattice step)
+//!    is the sub-cell estimate `x*`;
+//! 3. the pose fit: the same quadratic fit, on the image's pose-fit raster
 //!    ([`AcousticImage::pose_fit_grid`], built with a smaller off-axis
 //!    margin and no range smoothing, see
 //!    [`PoseFitRaster`](crate::image::PoseFitRaster)) around the estimate,
@@ -39,7 +34,6 @@
 pub mod config;
 pub mod covariance;
 pub mod outcome;
-pub mod refine;
 pub mod search;
 
 pub use config::{MatcherConfig, SearchWindow};
@@ -103,11 +97,11 @@ pub fn match_scan(
 
 /// [`match_scan`] with a local coarse search: hill-climbing on the same
 /// lattice from the prior ([`search::SearchProblem::local_max`]) instead of
-/// the global branch-and-bound, then the same refinement, covariance and
+/// the global branch-and-bound, then the same sub-cell fit, covariance and
 /// quality. It finds the maximum of eq. (6) nearest the prior, not the
 /// best in the window: for verifying a pair whose prior is already close
-/// (loop densification), at a tenth of the cost. No second peak is
-/// searched; the window bounds the climb.
+/// (loop densification), at a fraction of the cost; the window bounds the
+/// climb.
 pub fn match_scan_local(
     points: &[Point2<f64>],
     image: &AcousticImage,
@@ -254,48 +248,16 @@ fn match_with(
     };
     let problem = search::SearchProblem::new(&points, image, prior, &disc);
     let mut stats = search::SearchStats::default();
-    let separation = |best: &search::Leaf| search::Exclusion {
-        centre: *best,
-        cells: config.peak_separation_m / cell_m,
-        angle_steps: (config.peak_separation_rad / angle_step_rad).floor() as i32,
+    let found = match search {
+        Search::Local => problem.local_max(&mut stats),
+        Search::Global => problem.best_leaf(&mut stats),
     };
-    let found = if search == Search::Local {
-        problem.local_max(&mut stats).map(|best| (best, None))
-    } else if config.second_peak {
-        problem
-            .best_and_separated(separation, &mut stats)
-            .map(|(best, second)| (best, second.map(|s| f64::from(s.score / best.score))))
-    } else {
-        problem.best_leaf(None, &mut stats).map(|best| (best, None))
-    };
-    let Some((best, second_peak_ratio)) = found else {
+    let Some(best) = found else {
         return Ok(MatchOutcome::NoMatch {
             reason: NoMatchReason::NoOverlap,
         });
     };
     let coarse = best.pose(prior, &disc, cell_m);
-    // The refinement may not leave the window (plus the lattice's reach).
-    let bounds = refine::Bounds {
-        centre: *prior,
-        half_width: Vector3::new(
-            f64::from(disc.cells_x) * cell_m,
-            f64::from(disc.cells_y) * cell_m,
-            f64::from(disc.angle_steps) * angle_step_rad,
-        ),
-    };
-    // Without simplex iterations the refinement would return the lattice
-    // pose after scoring it once for nothing.
-    let refined = (config.refine_iterations > 0).then(|| {
-        refine::refine(
-            &points,
-            image,
-            &coarse,
-            &bounds,
-            rho_m,
-            0.5 * cell_m,
-            config.refine_iterations,
-        )
-    });
     let steps = Vector3::new(cell_m, cell_m, cell_m / rho_m);
     let bound = window.as_vector().sup(&steps);
     let lattice_radius = match covariance_model {
@@ -305,21 +267,16 @@ fn match_with(
     let fit = covariance::fit_surface(
         &points,
         image.grid(),
-        refined.as_ref().map_or(&coarse, |r| &r.pose),
+        &coarse,
         steps.z,
         lattice_radius,
         &bound,
         config.covariance_scale,
     );
-    // Without the simplex, the peak of the fitted quadratic gives the
-    // sub-cell pose (the lattice pose is quantised to the cells).
-    let pose = match &refined {
-        Some(r) => r.pose,
-        None => {
-            let v = coarse.to_vector() + fit.peak_offset;
-            Se2::new(v.x, v.y, v.z)
-        }
-    };
+    // The peak of the fitted quadratic gives the sub-cell pose (the
+    // lattice pose is quantised to the cells).
+    let v = coarse.to_vector() + fit.peak_offset;
+    let pose = Se2::new(v.x, v.y, v.z);
     // The quality is read where the searched image peaks, before the pose
     // fit's correction: the gates are set for that image's intensities.
     let mean = match quality {
@@ -342,7 +299,7 @@ fn match_with(
         quality: MatchQuality {
             mean_intensity: mean,
             inside_fraction: inside as f64 / points.len() as f64,
-            second_peak_ratio,
+            second_peak_ratio: None,
             points: points.len(),
             surface_fit_residual: fit.relative_fit_residual,
         },
@@ -351,7 +308,7 @@ fn match_with(
         stats: MatchStats {
             angle_step_rad,
             search_nodes: stats.nodes,
-            refine_iterations: refined.map_or(0, |r| r.iterations),
+            refine_iterations: 0,
         },
     })))
 }
@@ -364,11 +321,9 @@ const POSE_FIT_WINDOW_STEPS: f64 = 3.0;
 /// Largest move of the pose fit, in lattice steps (the largest axis). The
 /// bias it removes is a small fraction of a cell; the raster it reads is
 /// not smoothed in range, and on real echoes its peak can sit a whole cell
-/// away: the MiniKing log's known offsets are recovered to 0.010-0.065 m
-/// with this limit at 0.5, to 0.022-0.102 m at 1 (0.002-0.009 m without
-/// the fit, but 0.31-0.59° in heading against 0.11-0.39°). On the
-/// simulated missions 0.5 and 1 do equally well, 0.25 keeps less of the
-/// gain (marina mean ATE 0.293, 0.288 and 0.322 m).
+/// away. 0.5 recovers the known offsets of the real MiniKing log better than 1,
+/// and on the simulated missions keeps more of the fit's gain than 0.25
+/// (measured: EXPERIMENTS.md § Matcher).
 const POSE_FIT_MAX_STEPS: f64 = 0.5;
 
 /// The last step of a match: the peak of a quadratic fitted to the score
@@ -456,16 +411,6 @@ mod tests {
         (b, truth)
     }
 
-    /// The matcher as the SLAM pipeline configures it: no Nelder-Mead
-    /// refinement, no second-peak search.
-    fn pipeline_matcher() -> MatcherConfig {
-        MatcherConfig {
-            refine_iterations: 0,
-            second_peak: false,
-            ..MatcherConfig::default()
-        }
-    }
-
     fn pose_error(a: &Se2, b: &Se2) -> (f64, f64) {
         let d = a.between(b);
         (d.translation().norm(), d.theta().abs())
@@ -504,7 +449,7 @@ mod tests {
         assert!(image.pose_fit_grid().is_none());
         let scan = &rotation.wall_points;
         let window = SearchWindow::new(0.5, 0.5, 0.05);
-        let matcher = pipeline_matcher();
+        let matcher = MatcherConfig::default();
         let plain = match_scan(scan, &image, &Se2::identity(), &window, &matcher).unwrap();
         let plain = plain.matched().unwrap().clone();
         let (dx, dy) = (0.4 * image.cell_size_m(), -0.3 * image.cell_size_m());
@@ -560,8 +505,6 @@ mod tests {
             assert!(dtheta < 0.5_f64.to_radians(), "angle error {dtheta} rad");
             assert!(m.quality.mean_intensity > 0.3, "{:?}", m.quality);
             assert!(m.quality.inside_fraction > 0.99);
-            let ratio = m.quality.second_peak_ratio.unwrap();
-            assert!(ratio < 0.8, "second peak ratio {ratio}");
         }
     }
 
@@ -608,7 +551,7 @@ mod tests {
         let scene = SceneConfig::default();
         let a = static_rotation(&scene, 11);
         let image = image_of(&a);
-        let config = pipeline_matcher();
+        let config = MatcherConfig::default();
         let mut rng = ChaCha8Rng::seed_from_u64(22);
         for trial in 0..8 {
             let (b, truth) = offset_rotation(&scene, &a, &mut rng, 200 + trial);
@@ -627,7 +570,6 @@ mod tests {
                 "trial {trial}: {dt} m, {dtheta} rad"
             );
             assert_eq!(l.coarse, g.coarse, "trial {trial}");
-            assert!(l.quality.second_peak_ratio.is_none());
             assert!(
                 l.stats.search_nodes < g.stats.search_nodes,
                 "trial {trial}: {} vs {} nodes",
@@ -652,7 +594,7 @@ mod tests {
         let scene = SceneConfig::default();
         let a = static_rotation(&scene, 12);
         let image = image_of(&a);
-        let config = pipeline_matcher();
+        let config = MatcherConfig::default();
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         for trial in 0..4 {
             let (b, truth) = offset_rotation(&scene, &a, &mut rng, first_rotation_seed + trial);
@@ -757,8 +699,6 @@ mod tests {
         assert!((m.image_from_scan.y()).abs() < 0.05);
         let (sx, sy) = (m.covariance[(0, 0)].sqrt(), m.covariance[(1, 1)].sqrt());
         assert!(sx > 5.0 * sy, "σx {sx}, σy {sy}");
-        // And the second peak along the wall is nearly as good as the first.
-        assert!(m.quality.second_peak_ratio.unwrap() > 0.9);
     }
 
     #[test]

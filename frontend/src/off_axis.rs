@@ -9,24 +9,10 @@
 //! seen from two rotations at different ranges does not line up, and the
 //! matches come out biased.
 //!
-//! Measured with `echofield bench-matcher --navigation ground-truth
-//! --trials 1 --max-pairs 400 --max-error-m 0.5 --max-error-deg 2` on the
-//! simulated marina with exact navigation (seed 1, the simulator's 3° beam,
-//! its `[dvl]` and `[heading]` noise set to 0), mean signed error of the
-//! successes ± its standard error, without -> with the suppression:
-//!
-//! | pairs | along the displacement | heading |
-//! |---|---|---|
-//! | consecutive | -2.6 ± 0.6 cm (-0.50%) -> -0.5 ± 0.6 cm (-0.11%) | +0.069 ± 0.016° -> +0.059 ± 0.017° |
-//! | non-consecutive | -2.3 ± 0.4 cm (-0.16%) -> -1.4 ± 0.4 cm (-0.07%) | +0.037 ± 0.014° -> +0.039 ± 0.014° |
-//!
-//! A simulated 0.5° beam has no such shortening (-0.06 cm), so it is the
-//! beam width's. The whole pipeline on that mission, with 3° heading
-//! priors (and the loop gate `loops.min_mean_intensity` lowered from 0.35
-//! to 0.30 with it), went from 0.483 m to 0.286 m ATE (dead reckoning:
-//! 0.061 m): the
-//! pose graph averages random errors away, but a bias of one sign shrinks
-//! and bends the map. The heading bias of the matches stays.
+//! A bias of one sign does not average out in the pose graph: it shrinks and
+//! bends the map. On a simulated mission with exact navigation the suppression
+//! removes most of the matches' shortening along the displacement, which a
+//! narrow beam does not have (measured: EXPERIMENTS.md § Off-axis suppression).
 //!
 //! The rule: an echo of beam `j` at range `r` and (smoothed) intensity
 //! `z` is dropped when a beam within `max_angle_rad` of `j` holds an echo
@@ -47,67 +33,16 @@
 //! ([`suppress_bins`]), with a larger margin so that the returns the scan
 //! keeps also stay in the image.
 //!
-//! **The image's margin and the heading bias.** The heading bias left in
-//! the table above comes from the image: ICP on the same scans has none,
-//! and the bias grows when only the image's suppression is turned off.
-//! Measured with `echofield bench-matcher --mission M --navigation
-//! ground-truth --trials 1 --max-pairs 400 --max-error-m 0.5
-//! --max-error-deg 2 --config F`, M the simulated marina (seed 2) with
-//! exact navigation, F the `[dead_reckoning]` to `[matcher]` sections of
-//! `tools/configs/default.toml` (the pipeline's matcher settings); mean
-//! heading error of the successes ± its standard error, and the success
-//! rate:
-//!
-//! | image margin | consecutive | non-consecutive |
-//! |---|---|---|
-//! | off | +0.083 ± 0.022°, 95.4% | +0.034 ± 0.016°, 88.5% |
-//! | 25 (default) | +0.045 ± 0.017°, 95.4% | +0.010 ± 0.014°, 88.8% |
-//! | 15 | +0.018 ± 0.016°, 92.1% | −0.001 ± 0.010°, 89.5% |
-//! | 8 | +0.013 ± 0.015°, 88.2% | −0.018 ± 0.011°, 84.2% |
-//!
-//! ICP: −0.003 ± 0.034° and −0.004 ± 0.019°. A smaller margin removes
-//! the bias, but also some echoes the scans keep: the mean intensity
-//! under a loop's points drops, and the loop gate
-//! `loops.min_mean_intensity` rejects more. The whole pipeline
-//! (`tools/configs/default.toml` with the two keys changed; mean ATE of
-//! marina seeds 1-10 and St Pere seeds 1-6, smallest St Pere loop
-//! recall):
-//!
-//! | image margin, loop gate | marina | St Pere | St Pere recall |
-//! |---|---|---|---|
-//! | 25, 0.30 (default) | 0.336 m | 0.194 m | 0.904 |
-//! | 20, 0.30 | 0.315 m | 0.192 m | 0.842 |
-//! | 20, 0.27 | 0.318 m | 0.197 m | 0.872 |
-//! | 20, 0.25 | 0.309 m | 0.217 m | 0.882 |
-//! | 15, 0.30 | 0.299 m | 0.196 m | 0.747 |
-//! | 15, 0.25 | 0.294 m | 0.211 m | 0.853 |
-//! | 15, 0.22 | 0.289 m | 0.220 m | 0.872 |
-//!
-//! The marina gains (at 15 and 0.22, seed 2: 0.421 → 0.226 m, seed 8:
-//! 0.546 → 0.363 m) but seed 5 loses (0.401 → 0.460 m), and no setting
-//! keeps the St Pere recall at 0.9, so the searched image stays at 25.
-//! The matcher's last step instead reads a second raster with margin 10
-//! and no range smoothing ([`crate::image::PoseFitRaster`], where its
-//! figures are): the pose gains the smaller bias while the search and
-//! the gates keep the image they were set for.
-//!
-//! **What the arcs do not explain.** With the pose-fit raster, the
-//! consecutive matches of the marina (seed 1, exact navigation) keep a
-//! heading bias of +0.033 ± 0.008°, and a beam too narrow to draw arcs
-//! leaves it where it is (`echofield simulate --config` with `[sonar]
-//! beam_width_rad = 0.01`: +0.037 ± 0.007°); so does a sonar without echo
-//! tail, speckle, spikes, multipath, blobs and beam-time jitter
-//! (+0.033 ± 0.007°, and −0.023 ± 0.004 m along the displacement). Part
-//! of it is where a bin's echo is placed: at the bin's far end (the
-//! paper's eq. 3), while the simulator's echoes peak at bin centres.
-//! Placing them at the centre on that clean sonar gives +0.012 ± 0.005°
-//! and −0.014 ± 0.005 m, but on the realistic one, whose smoothed echoes
-//! with tails peak further out, +0.060 ± 0.010°, and the whole pipeline
-//! got worse (marina seeds 1-10 / St Pere seeds 1-6 mean ATE 0.311 /
-//! 0.223 m against 0.294 / 0.198 m). The rest is not explained. Self
-//! matches (a scan on its own rotation's image) show no bias
-//! (+0.0007 ± 0.0071° over 34 rotations), so it comes with the change of
-//! viewpoint between rotations.
+//! **The image's margin and the heading bias.** The image's off-axis echoes
+//! leave the matches a small heading bias; a smaller image margin removes it,
+//! but also removes echoes that the scans keep, so the mean intensity under a
+//! loop's points drops and the loop gate `loops.min_mean_intensity` rejects
+//! right loops. The searched image therefore keeps the larger margin, and the
+//! matcher's last step reads a second raster with a smaller one and no range
+//! smoothing ([`crate::image::PoseFitRaster`]): the pose gains the smaller bias
+//! while the search and the gates keep the image they were set for. Part of the
+//! bias is not explained by the arcs. Measured: EXPERIMENTS.md § Off-axis
+//! suppression.
 
 use crate::error::FrontendError;
 use crate::sensors::SonarBeam;

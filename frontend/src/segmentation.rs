@@ -18,10 +18,8 @@
 //!
 //! **Ringing that changes from ping to ping.** A fixed blind zone has to
 //! cover the longest ringing of the log and so hides every echo nearer than
-//! that. At high gain a Ping360's ringing and near-field reverberation
-//! (bins above 200 of 255 from the transducer outward) lasts 0.3-2.9 m
-//! (1st-99th percentile, median 1.2 m) at the 10 m range, varying from ping
-//! to ping (`inside_base` log of `datasets/msis-real/ping360`). With
+//! that. At high gain a Ping360's ringing and near-field reverberation changes
+//! its length from ping to ping (measured: EXPERIMENTS.md § Segmentation). With
 //! `ringing_below_intensity` set, each beam's ringing is the run of
 //! (smoothed) bins from the first bin outward up to the first bin below
 //! that level, then down its falling edge to the first bin that is not

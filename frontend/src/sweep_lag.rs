@@ -10,13 +10,11 @@
 //! `2·lag`, while sweeps in the same direction (and continuous rotations)
 //! agree with each other.
 //!
-//! Measured on the real Ping360 logs of `datasets/msis-real/ping360`: in the
-//! 40 m sector of `Corrupted__20210619-213338492.bin` (walls 0.3-10 m away)
-//! opposite sweeps disagree by 0.87-0.97 grad and same-direction sweeps by
-//! 0.03-0.09 grad, so `lag` ≈ 0.45 grad ≈ 0.4° (about half of one 0.9°
-//! motor step). The other sectors of those logs hold no echo structure that
-//! repeats from sweep to sweep, so they give no estimate
-//! ([`estimate_sweep_lag`] returns an error there).
+//! On the real Ping360 logs of `datasets/msis-real/ping360` one sector's echoes
+//! repeat from sweep to sweep and give a lag of about half a motor step; the
+//! other sectors hold no such structure and give no estimate
+//! ([`estimate_sweep_lag`] returns an error there). Measured: EXPERIMENTS.md §
+//! Sweep lag.
 //!
 //! Correction ([`correct_sweep_lag`]): every beam's angle is moved back by
 //! `lag_rad` against the direction of the last non-zero angle step that led

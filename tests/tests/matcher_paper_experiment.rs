@@ -20,6 +20,14 @@ use echofield_tests::{
 
 const TOLERANCE_M: f64 = 0.05;
 const TOLERANCE_DEG: f64 = 0.5;
+/// The real Ping360 log's short rotations: the matcher's sub-cell heading
+/// is the peak of a quadratic fitted on its angular lattice (a step moves
+/// a point at the scan's RMS range by one cell), and on this log one
+/// rotation self-matches at 0.54°. The Nelder-Mead refinement on the
+/// sample-interpolated score that held it under 0.5° was removed: it made
+/// the SLAM trajectories worse on the real St Pere mission (EXPERIMENTS.md
+/// § Matcher: off-by-default paths).
+const PING360_TOLERANCE_DEG: f64 = 0.6;
 
 /// Binary (scan-only) data: a band gives the same score wherever in it a
 /// point lands, so the argmax is a region; its extent is about one raster
@@ -40,6 +48,7 @@ fn self_match_every_rotation(
     name: &str,
     mission: &MissionRotations,
     config: &MatchingConfig,
+    tolerance_deg: f64,
     keep: impl Fn(usize) -> bool,
 ) -> (f64, f64, usize) {
     let prior = Se2::new(0.3, -0.2, 2.0_f64.to_radians());
@@ -61,7 +70,7 @@ fn self_match_every_rotation(
             m.image_from_scan.theta().abs().to_degrees(),
         );
         assert!(
-            dt < tolerance && dtheta < TOLERANCE_DEG,
+            dt < tolerance && dtheta < tolerance_deg,
             "{name} rotation {k}: argmax at {:?} ({dt:.3} m, {dtheta:.2} deg)",
             m.image_from_scan.to_vector()
         );
@@ -79,7 +88,8 @@ fn simulated_tank_mission() {
     let config = MatchingConfig::default();
     let rotations = MissionRotations::new(mission, &config).unwrap();
     assert!(rotations.rotations.len() >= 8);
-    let (_, _, without) = self_match_every_rotation("tank", &rotations, &config, |_| true);
+    let (_, _, without) =
+        self_match_every_rotation("tank", &rotations, &config, TOLERANCE_DEG, |_| true);
     assert_eq!(without, 0);
 }
 
@@ -95,7 +105,8 @@ fn st_pere_replay() {
         "{}",
         rotations.rotations.len()
     );
-    let (_, _, without) = self_match_every_rotation("stpere", &rotations, &config, |_| true);
+    let (_, _, without) =
+        self_match_every_rotation("stpere", &rotations, &config, TOLERANCE_DEG, |_| true);
     // Rotations far from every structure give too few ranges for a scan
     // (14 of 231 with seed 3).
     assert!(
@@ -122,7 +133,13 @@ fn real_ping360_log() {
             .count()
             >= 20
     );
-    let (_, _, without) = self_match_every_rotation("ping360", &rotations, &config, long_range);
+    let (_, _, without) = self_match_every_rotation(
+        "ping360",
+        &rotations,
+        &config,
+        PING360_TOLERANCE_DEG,
+        long_range,
+    );
     // The last sweep, cut short at the end of the log, has no strong return.
     assert!(without <= 1, "{without} without a scan");
 }
@@ -134,7 +151,8 @@ fn real_miniking_log() {
     let rotations = MissionRotations::load(&path, &config).unwrap();
     assert!(rotations.stationary);
     assert_eq!(rotations.rotations.len(), 2);
-    let (_, _, without) = self_match_every_rotation("miniking", &rotations, &config, |_| true);
+    let (_, _, without) =
+        self_match_every_rotation("miniking", &rotations, &config, TOLERANCE_DEG, |_| true);
     assert_eq!(without, 0);
 }
 
@@ -147,8 +165,13 @@ fn simulated_tank_mission_as_point_sets() {
     let config = MatchingConfig::default();
     let rotations = MissionRotations::new(mission, &config).unwrap();
     assert!(rotations.binary);
-    let (_, _, without) =
-        self_match_every_rotation("tank point sets", &rotations, &config, |_| true);
+    let (_, _, without) = self_match_every_rotation(
+        "tank point sets",
+        &rotations,
+        &config,
+        TOLERANCE_DEG,
+        |_| true,
+    );
     assert_eq!(without, 0);
 }
 
@@ -172,7 +195,8 @@ fn simulated_tank_mission_as_ranges_only() {
     let config = MatchingConfig::default();
     let rotations = MissionRotations::new(mission, &config).unwrap();
     assert!(rotations.binary);
-    let (_, _, without) = self_match_every_rotation("tank ranges", &rotations, &config, |_| true);
+    let (_, _, without) =
+        self_match_every_rotation("tank ranges", &rotations, &config, TOLERANCE_DEG, |_| true);
     assert_eq!(without, 0);
 }
 
@@ -191,9 +215,12 @@ fn real_st_pere_point_sets() {
     let covered = rotations
         .covered_rotations()
         .expect("navigation covers rotations");
-    let (_, _, without) =
-        self_match_every_rotation("St Pere point sets", &rotations, &config, |k| {
-            (covered.0..=covered.1).contains(&k)
-        });
+    let (_, _, without) = self_match_every_rotation(
+        "St Pere point sets",
+        &rotations,
+        &config,
+        TOLERANCE_DEG,
+        |k| (covered.0..=covered.1).contains(&k),
+    );
     assert_eq!(without, 0);
 }

@@ -4,7 +4,9 @@
 use echofield::slam::outputs::precision_recall::{Direction, evaluate_loops_dir};
 
 /// Eight candidates. Four are correct (rows 1, 2, 4, 6); row 7 was not
-/// matched (no metrics, no verdict); row 8 has no second-peak ratio.
+/// matched (no metrics, no verdict). The `second_peak_ratio` column of
+/// files written before the matcher dropped its second-peak search is
+/// read past (an unknown column).
 ///
 /// mean_intensity (accept when >= t), strictest first, positives P = 4:
 ///
@@ -16,16 +18,6 @@ use echofield::slam::outputs::precision_recall::{Direction, evaluate_loops_dir};
 /// | 0.6 | 4        | 3  | 3/4       | 3/4    | 3/4    |
 /// | 0.5 | 6        | 4  | 2/3       | 1      | 4/5    |  <- best
 /// | 0.3 | 7        | 4  | 4/7       | 1      | 8/11   |
-///
-/// second_peak_ratio (accept when <= t):
-///
-/// | t   | accepted | TP | precision | recall | F1     |
-/// |-----|----------|----|-----------|--------|--------|
-/// | 0.1 | 1        | 0  | 0         | 0      | 0      |
-/// | 0.2 | 2        | 1  | 1/2       | 1/4    | 1/3    |
-/// | 0.3 | 4        | 3  | 3/4       | 3/4    | 3/4    |
-/// | 0.5 | 5        | 4  | 4/5       | 1      | 8/9    |  <- best
-/// | 0.6 | 6        | 4  | 2/3       | 1      | 4/5    |
 ///
 /// inside_fraction (accept when >= t):
 ///
@@ -87,7 +79,7 @@ fn sweep_matches_the_hand_computed_curve() {
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(dir.path().join("loops.csv"), LOOPS_CSV).unwrap();
     let result = evaluate_loops_dir(dir.path(), None).unwrap();
-    assert_eq!(result.sweeps.len(), 3);
+    assert_eq!(result.sweeps.len(), 2);
     // The run's own gate: 3 accepted, 2 of them right, of 4 correct.
     assert_eq!(result.current_gate, (3, 2, 4));
 
@@ -107,25 +99,7 @@ fn sweep_matches_the_hand_computed_curve() {
     );
     assert_eq!((mean.candidates, mean.positives), (7, 4));
 
-    let peak = &result.sweeps[1];
-    assert_sweep(
-        peak,
-        ("second_peak_ratio", Direction::AtMost),
-        &[
-            (0.1, 1, 0, 0.0, 0.0, 0.0),
-            (0.2, 2, 1, 0.5, 0.25, 1.0 / 3.0),
-            (0.3, 4, 3, 0.75, 0.75, 0.75),
-            (0.5, 5, 4, 0.8, 1.0, 8.0 / 9.0),
-            (0.6, 6, 4, 2.0 / 3.0, 1.0, 0.8),
-        ],
-        0.5,
-    );
-    assert_eq!(
-        peak.summary(),
-        "second_peak_ratio: best F1 0.889 at second_peak_ratio <= 0.5: precision 0.800, recall 1.000 (5 accepted, 1 false)"
-    );
-
-    let inside = &result.sweeps[2];
+    let inside = &result.sweeps[1];
     assert_sweep(
         inside,
         ("inside_fraction", Direction::AtLeast),
@@ -149,7 +123,7 @@ fn sweep_matches_the_hand_computed_curve() {
         "metric,direction,threshold,accepted,true_positives,false_positives,precision,recall,f1"
     );
     let rows: Vec<&str> = lines.collect();
-    assert_eq!(rows.len(), 17);
+    assert_eq!(rows.len(), 12);
     let check = |row: &str, head: &str, numbers: [f64; 3]| {
         let fields: Vec<&str> = row.split(',').collect();
         assert_eq!(fields[..6].join(","), head);
@@ -166,12 +140,7 @@ fn sweep_matches_the_hand_computed_curve() {
         [2.0 / 3.0, 1.0, 0.8],
     );
     check(
-        rows[9],
-        "second_peak_ratio,at_most,0.5,5,4,1",
-        [0.8, 1.0, 8.0 / 9.0],
-    );
-    check(
-        rows[15],
+        rows[10],
         "inside_fraction,at_least,0.6,6,4,2",
         [2.0 / 3.0, 1.0, 0.8],
     );
@@ -179,29 +148,28 @@ fn sweep_matches_the_hand_computed_curve() {
     assert_eq!((png.width(), png.height()), (900, 700));
 }
 
-/// The pipeline's default matcher measures no second peak: that sweep is
-/// empty and says why, instead of claiming there is no correct candidate.
+/// A metric that no candidate has: that sweep is empty and says so,
+/// instead of claiming there is no correct candidate.
 #[test]
 fn a_metric_without_values_says_so() {
     let dir = tempfile::tempdir().unwrap();
-    let no_peaks: String = LOOPS_CSV
+    let no_inside: String = LOOPS_CSV
         .lines()
         .map(|line| {
             let mut fields: Vec<&str> = line.split(',').collect();
-            if fields[6] != "second_peak_ratio" {
-                fields[6] = "";
+            if fields[9] != "inside_fraction" {
+                fields[9] = "";
             }
             fields.join(",") + "\n"
         })
         .collect();
-    std::fs::write(dir.path().join("loops.csv"), no_peaks).unwrap();
+    std::fs::write(dir.path().join("loops.csv"), no_inside).unwrap();
     let result = evaluate_loops_dir(dir.path(), None).unwrap();
-    let peak = &result.sweeps[1];
-    assert!(peak.points.is_empty() && peak.best_point().is_none());
+    let inside = &result.sweeps[1];
+    assert!(inside.points.is_empty() && inside.best_point().is_none());
     assert_eq!(
-        peak.summary(),
-        "second_peak_ratio: no candidate has a value, nothing to sweep \
-         (it is measured only with `[matcher] second_peak = true`)"
+        inside.summary(),
+        "inside_fraction: no candidate has a value, nothing to sweep"
     );
     // The other metric is unaffected.
     assert_eq!(result.sweeps[0].best_point().unwrap().threshold, 0.5);

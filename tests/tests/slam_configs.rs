@@ -28,6 +28,16 @@ fn every_shipped_config_parses() {
     assert!(count >= 2, "{count} configs");
 }
 
+/// One default per key: the pipeline's matcher is the matcher type's own
+/// default, so the library's default path is the one the pipeline runs.
+#[test]
+fn the_pipelines_matcher_is_the_matchers_default() {
+    assert_eq!(
+        SlamConfig::default().matcher,
+        echofield_frontend::matcher::MatcherConfig::default()
+    );
+}
+
 #[test]
 fn default_toml_is_the_built_in_default() {
     let config = SlamConfig::from_toml_file(&configs_dir().join("default.toml")).unwrap();
@@ -99,8 +109,8 @@ fn bad_values_are_errors_naming_the_field() {
 
 /// A file that sets some keys of a section leaves the others at the
 /// pipeline's defaults, also where those differ from the defaults of the
-/// section's type (the matcher's refinement and second peak, the two
-/// off-axis margins, the loop edges' robust kernel): each file below gives
+/// section's type (the two off-axis margins, the loop edges' robust
+/// kernel): each file below gives
 /// the default config with exactly one value changed.
 #[test]
 fn partly_set_sections_keep_the_pipelines_other_defaults() {
@@ -138,8 +148,6 @@ fn partly_set_sections_keep_the_pipelines_other_defaults() {
         assert_eq!(parsed, expected, "{text:?}");
     }
     // The pipeline's defaults these cases rely on differ from the types'.
-    assert_eq!(defaults.matcher.refine_iterations, 0);
-    assert!(!defaults.matcher.second_peak);
     assert_ne!(
         defaults.image.off_axis.margin,
         defaults.segmentation.off_axis.margin

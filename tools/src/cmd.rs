@@ -4,6 +4,7 @@ pub mod bench_dead_reckoning;
 pub mod bench_matcher;
 pub mod bench_robust;
 pub mod calibrate;
+pub mod config;
 pub mod convert;
 pub mod demo;
 pub mod error_budget;

@@ -2,12 +2,10 @@
 //!
 //! Deserialising a TOML file straight into a config struct fills each
 //! missing key from the `Default` of the struct that holds it. That is
-//! wrong wherever a section's default is not its type's default: the
-//! pipeline's `[matcher]` turns the Nelder-Mead refinement and the second
-//! peak off (the matcher's own default has both on), `[image.off_axis]`
-//! has margin 25 and `[segmentation.off_axis]` 15 (their type says 20),
-//! and `[backend.solver]` puts a Cauchy kernel on loop edges (the solver's
-//! own default has none). A file that sets one key of such a section
+//! wrong wherever a section's default is not its type's default:
+//! `[image.off_axis]` has margin 25 and `[segmentation.off_axis]` 15
+//! (their type says 20), and `[backend.solver]` puts a Cauchy kernel on
+//! loop edges (the solver's own default has none). A file that sets one key of such a section
 //! silently reset its other keys to the type's values.
 //!
 //! [`from_toml_over`] instead serialises the defaults to a TOML table,

@@ -5,6 +5,7 @@
 //! frontend and the backend.
 
 pub mod calibration;
+pub mod config_doc;
 pub mod config_file;
 pub mod eval;
 pub mod fuzz;

@@ -34,6 +34,8 @@ enum Command {
     Run(cmd::run::Args),
     /// Estimate the sonar head's mounting from the mission's own data.
     Calibrate(cmd::calibrate::Args),
+    /// Print the default configuration with each key's documentation.
+    Config(cmd::config::Args),
     /// Match the scan of one rotation against the acoustic image of another.
     Match(cmd::matching::Args),
     /// Success rate of the matcher against ground truth, beside ICP.
@@ -75,6 +77,7 @@ fn main() -> ExitCode {
         Command::Simulate(args) => cmd::simulate::run(args),
         Command::Run(args) => cmd::run::run(args),
         Command::Calibrate(args) => cmd::calibrate::run(args),
+        Command::Config(args) => cmd::config::run(args),
         Command::Match(args) => cmd::matching::run(args),
         Command::BenchMatcher(args) => cmd::bench_matcher::run(args),
         Command::BenchRobust(args) => cmd::bench_robust::run(args),

@@ -5,10 +5,9 @@
 //! `yaw_rate_noise_radps`, both white per sample. A gyro with a bias, a
 //! scale error or a wandering error breaks that model: the filter then
 //! trusts the rate's integral where it drifts, and the filtered heading
-//! falls behind or runs ahead of the measured one in every turn. The real St Pere MTi is such a unit: its
-//! rate reads 6% more than the heading changes and 0.66°/s off, and the
-//! dead-reckoning heading came out up to 2° from the headings at the end
-//! of fast turns, distorting those rotations' scans and images.
+//! falls behind or runs ahead of the measured one in every turn, distorting
+//! those rotations' scans and images. The real St Pere MTi is such a unit
+//! (EXPERIMENTS.md § Dead reckoning).
 //!
 //! Over consecutive windows of about `T` seconds the heading change is
 //! compared with the trapezoid integral of the rates, `e = Δψ − ∫ r dt`:
@@ -33,8 +32,8 @@
 //! whose disagreement is within them gets 0. The filter uses the larger of
 //! this and the configured `yaw_rate_noise_radps` (a floor, as for the
 //! DVL noise adaptation), so a consistent unit is filtered exactly as
-//! configured. Measured over 1 s: 0.040 rad/s on the St Pere MTi, 0 on
-//! the simulated units (heading noise read as 0.50°, as simulated).
+//! configured (what it finds on real and simulated units: EXPERIMENTS.md § Dead
+//! reckoning).
 //!
 //! A window holds `round(T / Δt)` sample intervals, at least one. A unit
 //! sampled every `T` seconds or more slowly has one-interval windows only:

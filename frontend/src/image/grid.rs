@@ -21,8 +21,9 @@ use nalgebra::Vector2;
 pub const MAX_SHIFT_RADIUS: usize = 3;
 
 /// `x.floor()` without the library call `f64::floor` compiles to on the
-/// x86-64 baseline (no SSE4.1 `roundsd`), which showed up at 2-3% of a
-/// pipeline run: truncate, then step down for negative non-integers.
+/// x86-64 baseline (no SSE4.1 `roundsd`), which showed up in profiles of a
+/// pipeline run (EXPERIMENTS.md § Speed notes): truncate, then step down for
+/// negative non-integers.
 /// Equal to `f64::floor` for every input, up to the sign of a zero result
 /// (`-0.5` gives `-1`, `-0.0` gives `0.0`); NaN and infinities pass
 /// through.

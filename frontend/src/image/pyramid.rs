@@ -20,12 +20,9 @@
 //! of `2^h + 1`), a looser bound only where the search starts, over wide
 //! windows, and a quarter of the bytes per level up. An image then holds
 //! about 8.3 bytes per cell instead of 11 (`f32` raster, `u16` pose-fit
-//! raster, levels 1-5: 1 + 1 + 1/4 + 1/16 + 1/64): on the St Pere replay
-//! the images held to the end of the run take 466 MiB instead of 612
-//! (`cargo bench -p echofield --bench pipeline`) and the peak resident
-//! memory of `echofield run` is 572 MB instead of 725 (`/usr/bin/time
-//! -f %M`), with the same matches, bit for bit, and no measurable change
-//! in matching time.
+//! raster, levels 1-5: 1 + 1 + 1/4 + 1/16 + 1/64), with the same
+//! matches, bit for bit (memory and time measured: EXPERIMENTS.md § Speed
+//! notes).
 //!
 //! Values are stored as `u8`, rounded up on a scale that maps the raster's
 //! largest value to 255, so the bound stays an upper bound (to within the

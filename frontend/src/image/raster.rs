@@ -292,8 +292,8 @@ impl Accumulator<f32> for MeanSample<'_> {
 }
 
 /// [`MeanSample`] of two values at once, the first with the count and the
-/// second's sum in a buffer of its own (measured faster than three values
-/// side by side: 2.6 against 2.9 ms for a 517 x 504 image).
+/// second's sum in a buffer of its own (faster than three values side by side:
+/// EXPERIMENTS.md § Speed notes).
 struct MeanPair<'a> {
     sum_count: &'a mut [[f32; 2]],
     second_sum: &'a mut [f32],

@@ -16,27 +16,14 @@ pub struct MatcherConfig {
     pub max_points: usize,
     /// Angular step of the coarse search, radians; `None` derives it as
     /// cell size / RMS range of the scan's points (a point at that range
-    /// moves one cell; the farthest ones move 1.5-2 cells, and the
-    /// quadratic fit or the refinement takes the pose between lattice
-    /// angles). Stepping by the farthest point instead made the matches of
-    /// a St Pere run 20% slower for no better accuracy: ATE 0.245-0.258 m
-    /// against 0.231-0.249 m over seeds 1-3; matcher success on the
-    /// simulated marina 92.7% / 85.3% (consecutive / non-consecutive)
-    /// against 93.3% / 85.0%.
+    /// moves one cell, the farthest ones more, and the quadratic fit takes
+    /// the pose between lattice angles). Stepping by the farthest point
+    /// instead was slower for no better accuracy (measured: EXPERIMENTS.md
+    /// § Matcher).
     pub angle_step_rad: Option<f64>,
-    /// A second peak must be farther than this from the best pose in
-    /// translation (metres) *or* in angle (radians) to count as separate.
-    pub peak_separation_m: f64,
-    pub peak_separation_rad: f64,
-    /// Search for the second separated peak (a second branch-and-bound).
-    pub second_peak: bool,
-    /// Iterations of the Nelder-Mead refinement (0 keeps the coarse pose).
-    pub refine_iterations: u64,
     /// `τ` of the covariance `Σ = τ (-H)⁻¹` (see [`covariance`](crate::matcher::covariance)), in
-    /// intensity units; larger is more conservative. The default 1 gave a
-    /// mean NEES of 2.3-5 on simulated marina and canyon missions with
-    /// dead-reckoning motion compensation (as the pipeline matches), and
-    /// 0.2-0.7 (conservative) with exact compensation.
+    /// intensity units; larger is more conservative. Default 1 (its
+    /// consistency on simulated missions: EXPERIMENTS.md § Matcher).
     pub covariance_scale: f64,
 }
 
@@ -46,10 +33,6 @@ impl Default for MatcherConfig {
             min_points: 10,
             max_points: 500,
             angle_step_rad: None,
-            peak_separation_m: 1.0,
-            peak_separation_rad: 5.0_f64.to_radians(),
-            second_peak: true,
-            refine_iterations: 100,
             covariance_scale: 1.0,
         }
     }
@@ -82,8 +65,6 @@ impl MatcherConfig {
         if let Some(step) = self.angle_step_rad {
             positive("angle_step_rad", step)?;
         }
-        positive("peak_separation_m", self.peak_separation_m)?;
-        positive("peak_separation_rad", self.peak_separation_rad)?;
         positive("covariance_scale", self.covariance_scale)?;
         Ok(())
     }

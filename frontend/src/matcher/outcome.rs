@@ -45,9 +45,10 @@ pub struct MatchQuality {
     pub mean_intensity: f64,
     /// Fraction of the points inside the image's extent at `x*`.
     pub inside_fraction: f64,
-    /// Best raster score (on the search lattice) outside the separation
-    /// zone divided by the best one (0-1; small = distinct peak). `None` when not searched or
-    /// when nothing outside the zone scores above 0.
+    /// Always `None`: the matcher no longer searches a second peak.
+    /// Kept only until the code outside the frontend that reads or builds
+    /// it (`tools/src/slam/loops/checks.rs`, `loops.rs`, `pipeline.rs`)
+    /// drops it.
     pub second_peak_ratio: Option<f64>,
     /// Scan points used (after thinning).
     pub points: usize,
@@ -63,7 +64,9 @@ pub struct MatchStats {
     pub angle_step_rad: f64,
     /// Branch-and-bound nodes evaluated (both searches).
     pub search_nodes: usize,
-    /// Nelder-Mead iterations.
+    /// Always 0: the matcher has no iterative refinement any more. Kept
+    /// only until the code that builds this struct outside the frontend
+    /// (`tools/src/slam/loops/checks.rs`) drops it; read nowhere.
     pub refine_iterations: u64,
 }
 
@@ -84,7 +87,7 @@ pub struct MatchResult {
     pub quality: MatchQuality,
     /// Covariance of `(x, y, θ)` of `image_from_scan`, m² and rad².
     pub covariance: Matrix3<f64>,
-    /// The best pose of the coarse search (before refinement).
+    /// The best pose of the coarse search (before the sub-cell fit).
     pub coarse: Se2,
     pub stats: MatchStats,
 }

@@ -24,14 +24,8 @@
 //! byte load per point. An expanded node's four children are bounded in
 //! one pass over the points (one 3 x 3 patch per point for four leaves
 //! instead of four 2 x 2 ones), with the same sums in the same order as
-//! one at a time, so results are unchanged bit for bit. Measured with
-//! `cargo bench -p echofield-frontend --bench matcher -- match_scan`
-//! (medians of two interleaved runs): the pipeline's 0.5 m / 3° window
-//! 0.238 → 0.190 ms, 1 m / 10° 3.08 → 2.90 ms, 5 m / 20° 7.62 → 6.51 ms.
-//!
-//! The second search for the best *separated* peak resumes from the nodes
-//! the first one left open, skipping nodes lying entirely within
-//! `separation` of the best leaf and leaves within it.
+//! one at a time, so results are unchanged bit for bit (timings: EXPERIMENTS.md
+//! § Speed notes).
 //!
 //! [`SearchProblem::local_max`] is the alternative for a prior already
 //! close to the answer: hill-climbing on the leaves from the prior. The
@@ -75,31 +69,6 @@ impl Leaf {
             prior.y() + f64::from(self.dy) * cell_m,
             prior.theta() + f64::from(self.angle) * disc.angle_step_rad,
         )
-    }
-}
-
-/// Which leaves a search may not return.
-#[derive(Clone, Copy, Debug)]
-pub struct Exclusion {
-    pub centre: Leaf,
-    /// Half-size of the excluded cylinder: cells and angle steps.
-    pub cells: f64,
-    pub angle_steps: i32,
-}
-
-impl Exclusion {
-    fn angle_excluded(&self, angle: i32) -> bool {
-        (angle - self.centre.angle).abs() <= self.angle_steps
-    }
-
-    /// True when every offset of the block `[dx0, dx0+size) × [dy0, dy0+size)`
-    /// lies within the excluded radius.
-    fn block_excluded(&self, dx0: i32, dy0: i32, size: i32) -> bool {
-        // The block corner farthest from the centre, per axis.
-        let far = |lo: i32, centre: i32| {
-            f64::from((lo - centre).abs().max((lo + size - 1 - centre).abs()))
-        };
-        far(dx0, self.centre.dx).hypot(far(dy0, self.centre.dy)) <= self.cells
     }
 }
 
@@ -352,38 +321,16 @@ impl<'a> SearchProblem<'a> {
         add_edge_leaf_score(sum, grid, edge, dx, dy)
     }
 
-    /// Branch-and-bound for the best leaf outside `exclusion`; `None` when
-    /// no leaf scores above 0.
+    /// Branch-and-bound for the best leaf; `None` when no leaf scores
+    /// above 0.
     ///
     /// Best-first: the open node with the highest bound is expanded next,
     /// and the search ends when that node is a leaf, whose exact score then
     /// beats every bound left. Only nodes whose bound exceeds the best
     /// score are expanded, the fewest any search with these bounds can.
-    pub fn best_leaf(
-        &self,
-        exclusion: Option<&Exclusion>,
-        stats: &mut SearchStats,
-    ) -> Option<Leaf> {
-        let mut open = self.roots(exclusion, stats);
-        self.run(&mut open, exclusion, stats)
-    }
-
-    /// The best leaf and the best leaf outside the exclusion zone that
-    /// `separation` draws around it (`None` when nothing outside it
-    /// scores above 0). The second search resumes from the nodes the
-    /// first left open, which together with the best leaf cover the whole
-    /// window, so it is as exact as a fresh search and repeats none of
-    /// the first one's work.
-    pub fn best_and_separated(
-        &self,
-        separation: impl FnOnce(&Leaf) -> Exclusion,
-        stats: &mut SearchStats,
-    ) -> Option<(Leaf, Option<Leaf>)> {
-        let mut open = self.roots(None, stats);
-        let best = self.run(&mut open, None, stats)?;
-        let exclusion = separation(&best);
-        let second = self.run(&mut open, Some(&exclusion), stats);
-        Some((best, second))
+    pub fn best_leaf(&self, stats: &mut SearchStats) -> Option<Leaf> {
+        let mut open = self.roots(stats);
+        self.run(&mut open, stats)
     }
 
     /// Hill-climbing on the leaves from the prior (leaf `(0, 0, 0)`): moves
@@ -395,9 +342,8 @@ impl<'a> SearchProblem<'a> {
     /// evaluates about as many nodes as the window has leaves (the bounds
     /// of a smooth image prune little in a window of a few cells). The
     /// new leaves around each leaf are scored nine at a time where they
-    /// can be (`SearchProblem::nine_leaf_scores`): one densification
-    /// match (`match_scan/pipeline_local_0.5m_3deg`, climb and covariance)
-    /// took 1.60 M instructions with single leaves and takes 1.37 M.
+    /// can be (`SearchProblem::nine_leaf_scores`; the saving is in
+    /// EXPERIMENTS.md § Speed notes).
     pub fn local_max(&self, stats: &mut SearchStats) -> Option<Leaf> {
         let d = self.disc;
         let (nx, ny) = ((2 * d.cells_x + 1) as usize, (2 * d.cells_y + 1) as usize);
@@ -474,7 +420,7 @@ impl<'a> SearchProblem<'a> {
     }
 
     /// The nodes of the top level that cover the window.
-    fn roots(&self, exclusion: Option<&Exclusion>, stats: &mut SearchStats) -> BinaryHeap<Open> {
+    fn roots(&self, stats: &mut SearchStats) -> BinaryHeap<Open> {
         let d = self.disc;
         let top = self.top_level;
         let size = 1i32 << top;
@@ -484,7 +430,7 @@ impl<'a> SearchProblem<'a> {
             while dx0 <= d.cells_x {
                 let mut dy0 = -d.cells_y;
                 while dy0 <= d.cells_y {
-                    self.push(top, angle, dx0, dy0, exclusion, stats, &mut open);
+                    self.push(top, angle, dx0, dy0, stats, &mut open);
                     dy0 += size;
                 }
                 dx0 += size;
@@ -493,22 +439,10 @@ impl<'a> SearchProblem<'a> {
         open
     }
 
-    /// Best-first expansion of `open` until a leaf outside `exclusion`
-    /// comes out on top; the nodes still open stay in `open`.
-    fn run(
-        &self,
-        open: &mut BinaryHeap<Open>,
-        exclusion: Option<&Exclusion>,
-        stats: &mut SearchStats,
-    ) -> Option<Leaf> {
+    /// Best-first expansion of `open` until a leaf comes out on top.
+    fn run(&self, open: &mut BinaryHeap<Open>, stats: &mut SearchStats) -> Option<Leaf> {
         let d = self.disc;
         while let Some(Open { node, level }) = open.pop() {
-            if let Some(e) = exclusion
-                && e.angle_excluded(node.angle)
-                && e.block_excluded(node.dx, node.dy, 1 << level)
-            {
-                continue; // opened before the exclusion was known
-            }
             if level == 0 {
                 return Some(node); // beats every bound still open
             }
@@ -516,13 +450,7 @@ impl<'a> SearchProblem<'a> {
             let half = 1i32 << child;
             let blocks = [(0, 0), (half, 0), (0, half), (half, half)]
                 .map(|(ox, oy)| (node.dx + ox, node.dy + oy));
-            let open_child = |&(dx0, dy0): &(i32, i32)| {
-                dx0 <= d.cells_x
-                    && dy0 <= d.cells_y
-                    && !exclusion.is_some_and(|e| {
-                        e.angle_excluded(node.angle) && e.block_excluded(dx0, dy0, half)
-                    })
-            };
+            let open_child = |&(dx0, dy0): &(i32, i32)| dx0 <= d.cells_x && dy0 <= d.cells_y;
             if blocks.iter().all(open_child) {
                 // The usual case: all four bounds in one pass over the points.
                 let bounds = self.child_bounds(child, node.angle, node.dx, node.dy);
@@ -541,7 +469,7 @@ impl<'a> SearchProblem<'a> {
             } else {
                 for &(dx0, dy0) in &blocks {
                     if dx0 <= d.cells_x && dy0 <= d.cells_y {
-                        self.push(child, node.angle, dx0, dy0, exclusion, stats, open);
+                        self.push(child, node.angle, dx0, dy0, stats, open);
                     }
                 }
             }
@@ -549,25 +477,16 @@ impl<'a> SearchProblem<'a> {
         None
     }
 
-    /// Evaluates a node and opens it when its bound is above 0 and it is
-    /// not wholly excluded.
-    #[allow(clippy::too_many_arguments)]
+    /// Evaluates a node and opens it when its bound is above 0.
     fn push(
         &self,
         level: usize,
         angle: i32,
         dx0: i32,
         dy0: i32,
-        exclusion: Option<&Exclusion>,
         stats: &mut SearchStats,
         open: &mut BinaryHeap<Open>,
     ) {
-        if let Some(e) = exclusion
-            && e.angle_excluded(angle)
-            && e.block_excluded(dx0, dy0, 1 << level)
-        {
-            return;
-        }
         stats.nodes += 1;
         let node = Leaf {
             angle,
@@ -648,13 +567,6 @@ impl Ord for Open {
     fn cmp(&self, other: &Self) -> Ordering {
         let (a, b) = (self.key(), other.key());
         a.0.total_cmp(&b.0).then_with(|| a.1.cmp(&b.1))
-    }
-}
-
-impl Exclusion {
-    /// True when the leaf lies inside the excluded cylinder.
-    pub fn contains(&self, leaf: &Leaf) -> bool {
-        self.angle_excluded(leaf.angle) && self.block_excluded(leaf.dx, leaf.dy, 1)
     }
 }
 
@@ -814,8 +726,7 @@ mod tests {
     }
 
     /// A random sparse image, a random scan and a window: branch-and-bound
-    /// must return the leaf that exhaustive evaluation finds best, and the
-    /// best one outside an exclusion zone.
+    /// must return the leaf that exhaustive evaluation finds best.
     #[test]
     fn branch_and_bound_finds_the_exhaustive_best() {
         let mut rng = ChaCha8Rng::seed_from_u64(4);
@@ -852,7 +763,7 @@ mod tests {
                 .max_by(|a, b| a.score.total_cmp(&b.score))
                 .unwrap();
             let mut stats = SearchStats::default();
-            let found = problem.best_leaf(None, &mut stats).unwrap();
+            let found = problem.best_leaf(&mut stats).unwrap();
             assert_eq!(found.score, exhaustive.score, "trial {trial}");
             assert!(
                 stats.nodes < all.len() * 2,
@@ -867,35 +778,6 @@ mod tests {
                 "{} vs {direct}",
                 found.score
             );
-            // The second search, outside 0.5 m and one angle step of it.
-            let exclusion = Exclusion {
-                centre: found,
-                cells: 2.5,
-                angle_steps: 1,
-            };
-            let second = all
-                .iter()
-                .filter(|l| !exclusion.contains(l))
-                .map(|l| l.score)
-                .fold(f32::MIN, f32::max);
-            let got = problem.best_leaf(Some(&exclusion), &mut stats).unwrap();
-            assert!(!exclusion.contains(&got));
-            assert_eq!(got.score, second, "trial {trial}");
-            // Both at once: the second search resumes from the first.
-            let mut both_stats = SearchStats::default();
-            let (best, separated) = problem
-                .best_and_separated(
-                    |l| Exclusion {
-                        centre: *l,
-                        ..exclusion
-                    },
-                    &mut both_stats,
-                )
-                .unwrap();
-            assert_eq!(best, found, "trial {trial}");
-            let separated = separated.unwrap();
-            assert!(!exclusion.contains(&separated));
-            assert_eq!(separated.score, second, "trial {trial}");
         }
     }
 }

@@ -22,10 +22,10 @@
 //! For a 3° beam (`s² = 4.9e-4`) at 20 m that is 1 cm at normal incidence,
 //! 5 cm at 45°, 13 cm at 60° and 56 cm at 75°.
 //!
-//! Why it matters: the error is different from each viewpoint, so a wall
-//! seen obliquely from one rotation and squarely from the next does not
-//! line up between their scan and image. On the simulated missions the
-//! matches came out 0.2-0.4% short of the true displacements.
+//! Why it matters: the error is different from each viewpoint, so a wall seen
+//! obliquely from one rotation and squarely from the next does not line up
+//! between their scan and image, and the matches come out short of the true
+//! displacements (measured: EXPERIMENTS.md § Beam-width correction).
 //!
 //! The correction moves each return outward by `Δr`, with `α` taken from
 //! the wall through its two neighbouring returns (the chord between the
@@ -40,46 +40,16 @@
 //! of one rotation no longer agree: [`crate::scan::Scan::image_frames`]
 //! shifts each beam frame along its axis by its return's correction.
 //!
-//! What the first-order correction leaves: matches between two rotations
-//! err in heading by about +0.1° on the simulated canyon (mean over 60
-//! pairs, ground-truth motion compensation, `echofield bench-matcher
-//! --mission canyon.mcap --navigation ground-truth`). The error grows with
-//! the speed of the vehicle and goes with the beam width:
-//!
-//! | simulated canyon, seed 1 | consecutive | non-consecutive |
-//! |---|---:|---:|
-//! | 3° beam, 0.4 m/s (default) | +0.097 ± 0.015° | +0.150 ± 0.023° |
-//! | 3° beam, 0.1 m/s | +0.026 ± 0.013° | +0.046 ± 0.024° |
-//! | 3° beam, 0.8 m/s | +0.217 ± 0.027° | +0.148 ± 0.029° |
-//! | 1° beam, 0.4 m/s | +0.023 ± 0.009° | +0.004 ± 0.013° |
-//! | 3° beam, no speckle, spikes, ghosts or blobs | +0.088 ± 0.012° | +0.085 ± 0.022° |
-//!
-//! So it is the range error that the correction leaves on oblique walls:
-//! the head turns one way while the vehicle moves, so the walls on either
-//! side are seen from different places at different incidences, and a
-//! residual error that depends on incidence turns the scan against the
-//! image of another rotation. A stronger incidence term
-//! (`backscatter_exponent` 8 or 16) shrinks the error but did not improve
-//! the trajectories (St Pere, marina and canyon runs, 2026-12-02).
-//!
-//! **In the whole pipeline.** With exact navigation the beam width is the
-//! largest error left: marina seed 8 simulated with
-//! `tools/configs/sim/exact_navigation.toml` ends at 0.446 m ATE (dead
-//! reckoning 0.060 m), and at 0.111 m with a 0.57° beam
-//! (`exact_navigation_narrow_beam.toml`). A stronger correction helps
-//! there but not on the realistic missions, whose navigation errors
-//! distort the scans more (mean ATE of marina seeds 1-10 and St Pere seeds
-//! 1-6 with the default navigation noise; `echofield run --config` with
-//! `backscatter_exponent` changed, 2026-12-03):
-//!
-//! | `backscatter_exponent` | marina 8, exact navigation | marina 1-10 | St Pere 1-6 |
-//! |---|---:|---:|---:|
-//! | correction off | 0.517 m | | |
-//! | 2 (default) | 0.446 m | 0.294 m | 0.198 m |
-//! | 4 | | 0.292 m | 0.203 m |
-//! | 8 | 0.378 m | 0.291 m | 0.205 m |
-//! | 20 | 0.242 m | 0.305 m | 0.238 m |
-//! | 30 | 0.226 m | 0.381 m | 0.263 m |
+//! What the first-order correction leaves: a heading error of the matches
+//! between rotations that grows with the vehicle's speed and with the beam
+//! width. It is the range error left on oblique walls: the head turns one way
+//! while the vehicle moves, so the walls on either side are seen from different
+//! places at different incidences, and a residual error that depends on
+//! incidence turns the scan against the image of another rotation. A stronger
+//! incidence term (a larger `backscatter_exponent`) shrinks it, and helps with
+//! exact navigation, but not on missions with realistic navigation noise, whose
+//! errors distort the scans more. Measured: EXPERIMENTS.md § Beam-width
+//! correction.
 
 use crate::error::FrontendError;
 use echofield_graph::Se2;

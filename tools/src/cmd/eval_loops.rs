@@ -15,16 +15,15 @@ Examples:
   echofield eval-loops out/demo --output-prefix tuned/pr
 
 Swept metrics (from loops.csv): mean_intensity, the mean acoustic-image
-value under the scan points at the match (accept when >= t);
-second_peak_ratio, the best score away from the peak over the peak score
-(accept when <= t); and inside_fraction, the share of the scan points
+value under the scan points at the match (accept when >= t), and
+inside_fraction, the share of the scan points
 inside the image at the match (accept when >= t). Only candidates with a
 ground-truth verdict (column gt_correct) count; a candidate is positive
 when its match is within the run's true-positive tolerances. Precision =
 TP / accepted, recall = TP / positives, for that one threshold alone (the
 other checks of the pipeline are not applied). The best-F1 threshold of
 each metric is printed; set it in the [loops] section of the run's config
-(min_mean_intensity, max_second_peak_ratio, min_inside_fraction).")]
+(min_mean_intensity, min_inside_fraction).")]
 pub struct Args {
     /// Output folder of `echofield run` or `echofield demo` (holds loops.csv).
     pub dir: PathBuf,

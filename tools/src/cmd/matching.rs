@@ -42,7 +42,7 @@ it (config [window]); --prior x,y,theta (metres, metres, degrees) is the
 pose of the scan's frame in the image's frame.
 
 OUT.json holds pose [x, y, theta] (theta in radians), score (eq. 5),
-quality (mean_intensity, inside_fraction, second_peak_ratio, ...), both
+quality (mean_intensity, inside_fraction, ...), both
 read at searched_peak, the peak on the searched image that the last
 step's pose fit ([image.pose_fit]) moved to pose,
 covariance (3x3, m and rad), the prior and window, and ground_truth and

@@ -157,8 +157,6 @@ pub struct Trial {
     /// lower is a failure of the search.
     pub mean_score: Option<f64>,
     pub mean_score_at_truth: Option<f64>,
-    /// The match's second-peak ratio (acoustic image only).
-    pub second_peak_ratio: Option<f64>,
     /// The true `image_from_scan` and the method's estimate `[x, y, θ]`
     /// (m, m, rad), for studying the direction of the errors.
     pub truth: [f64; 3],
@@ -274,7 +272,6 @@ pub fn evaluate(
                         confident,
                         mean_score: None,
                         mean_score_at_truth: None,
-                        second_peak_ratio: None,
                         truth: truth.to_vector().into(),
                         estimate: result.map(|r| r.to_vector().into()),
                         coarse_estimate: None,
@@ -302,7 +299,6 @@ pub fn evaluate(
                 if let MatchOutcome::Match(m) = &outcome {
                     trial.mean_score = Some(mean_score(source, &image, &m.image_from_scan));
                     trial.mean_score_at_truth = Some(mean_score(source, &image, &truth));
-                    trial.second_peak_ratio = m.quality.second_peak_ratio;
                     trial.coarse_estimate = Some(m.coarse.to_vector().into());
                 }
                 trials.push(trial);
@@ -743,7 +739,6 @@ mod tests {
             confident: None,
             mean_score: None,
             mean_score_at_truth: None,
-            second_peak_ratio: None,
             truth,
             estimate: Some(estimate),
             coarse_estimate: None,

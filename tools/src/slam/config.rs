@@ -2,9 +2,9 @@
 //!
 //! A file is laid over [`SlamConfig::default`]
 //! ([`crate::config_file::from_toml_over`]): every key it leaves out keeps
-//! the pipeline's default, also inside a section it partly sets (a
-//! `[matcher]` with one key keeps the pipeline's `refine_iterations = 0`,
-//! not the matcher type's 100). Every section is `deny_unknown_fields`:
+//! the pipeline's default, also inside a section it partly sets (an
+//! `[image.off_axis]` with one key keeps the image's margin 25, not the
+//! suppression type's 20). Every section is `deny_unknown_fields`:
 //! an unknown key at any depth is an error that names its full path
 //! (`loops.min_separaton_nodes`). The frontend and
 //! backend sections are those crates' own config structs; the sections
@@ -64,14 +64,8 @@ pub struct SlamConfig {
 }
 
 impl Default for SlamConfig {
-    /// The frontend's and backend's own defaults, except for the matcher:
-    /// no Nelder-Mead refinement (`refine_iterations = 0`: the peak of the
-    /// quadratic fitted to the score surface gives the sub-cell pose
-    /// instead; on the marina's matcher evaluation that is as successful
-    /// and 1.5 ms cheaper per match, with a median error of 0.12 m against
-    /// 0.10 m) and no second-peak search (`second_peak = false`: on the
-    /// simulated missions the ratio did not separate right from wrong
-    /// loop matches, and the second search doubles the cost).
+    /// The frontend's and backend's own defaults (`tools/configs/default.toml`
+    /// lists them all, documented).
     fn default() -> Self {
         Self {
             mounting: MountingConfig::default(),
@@ -79,11 +73,7 @@ impl Default for SlamConfig {
             rotation: RotationConfig::default(),
             segmentation: SegmentationConfig::default(),
             image: ImageConfig::default(),
-            matcher: MatcherConfig {
-                refine_iterations: 0,
-                second_peak: false,
-                ..MatcherConfig::default()
-            },
+            matcher: MatcherConfig::default(),
             motion_compensation: MotionCompensationConfig::default(),
             sequential: SequentialConfig::default(),
             loops: LoopConfig::default(),
@@ -158,56 +148,9 @@ pub struct MotionCompensationConfig {
     /// optimises again. Odometry edges and priors still come from the dead
     /// reckoning. The outputs and the report's counts are the second
     /// pass's; its stage timings add up both. About doubles the run time.
-    /// Default false: it pays where the dead reckoning is poor (the real
-    /// St Pere navigation errs by 0.5 m per rotation, median, and by up to
-    /// 1.6 m in sharp turns), not on the simulated marina (0.23 m per
-    /// rotation). Seeds 1-3, one thread:
-    ///
-    /// | | ATE (m) | precision | time (St Pere) |
-    /// |---|---|---|---|
-    /// | St Pere, off | 0.191-0.230 | 0.975-0.985 | 2.5 s |
-    /// | St Pere, on | 0.162-0.175 | 0.981-0.983 | 4.8-5.1 s |
-    /// | St Pere, ground truth as compensation | 0.134-0.168 | 1.0 | |
-    /// | marina, off | 0.32-0.48 | 0.993-0.997 | |
-    /// | marina, on | 0.32-0.55 | 0.990-0.997 | |
-    ///
-    /// The bend between two nodes is linear, so errors of the dead
-    /// reckoning that change within a rotation stay: the St Pere loops of
-    /// rotation 87 (a 51° turn) remain 0.5-0.6 m off with it, and not with
-    /// the ground truth. A third pass did not help (0.193 / 0.157 m on
-    /// seeds 1 and 2).
-    ///
-    /// The table predates the off-axis suppression of the frontend and the
-    /// derived heading priors (`backend.heading_prior_sigma_rad`). With
-    /// them the first pass gives 0.171-0.188 m on St Pere seeds 1-3 and the
-    /// refined pass 0.257-0.306 m (0.186-0.250 m with 3° heading priors):
-    /// it no longer pays (figures with `loops.densify_min_predicted_overlap`
-    /// 0.5). What is known of why, from the graphs' edges compared with
-    /// the ground truth (`echofield error-budget` does this): on St Pere
-    /// seeds 1-6 the refined loops are better (precision 0.989-0.993
-    /// against 0.982-0.987, recall 0.92-0.94 against 0.90-0.92), and on
-    /// seeds 3 and 6 and marina seed 1 so are the sequential matches in
-    /// random error, but the sequential matches' scale error about doubles
-    /// (St Pere +0.10% -> +0.18-0.21%, marina -0.15% -> -0.35% of the
-    /// displacement): the bend carries the first pass's scale error into
-    /// the motion inside every rotation, and matching the scans built that
-    /// way repeats it. Where no loop holds the chain (St Pere nodes
-    /// 156-175), a few sequential edges decide how the dead reckoning's
-    /// errors (up to 1.6 m per rotation there) spread: with every match
-    /// replaced by its ground-truth value, the refined pass's sequential
-    /// covariances still give 0.25 m on seed 6 against 0.15 m for the
-    /// first pass's, 0.13 m when the sequential edge 170-171, which only
-    /// the refined pass accepted, is dropped, and 0.12 m when the edge
-    /// 171-172 takes the first pass's covariance instead.
-    ///
-    /// Current figures (2026-12-03; mean over marina seeds 1-10 and St
-    /// Pere seeds 1-6 of ATE, loop precision and recall): off, marina
-    /// 0.294 m, 0.987, 0.765 and St Pere 0.198 m, 0.991, 0.925; on, marina
-    /// 0.316 m, 0.988, 0.767 and St Pere 0.256 m, 0.998, 0.955. The
-    /// refined loops are nearly all right, and the trajectory is still
-    /// worse. Keeping the first pass's sequential edges in the second
-    /// (a probe, not an option) gave St Pere 0.209 m at the same
-    /// precision and recall.
+    /// Default false: it no longer pays, on the real St Pere replay or on the
+    /// simulated marina (measured, with what is known of why: EXPERIMENTS.md §
+    /// Motion compensation refine).
     pub refine: bool,
 }
 
@@ -229,8 +172,11 @@ pub(crate) fn check_range(field: &str, value: f64, lo: f64, hi: f64) -> Result<(
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Window {
+    /// Along the x axis of the reference node's frame, metres.
     pub x_m: f64,
+    /// Along its y axis, metres.
     pub y_m: f64,
+    /// In heading, radians.
     pub theta_rad: f64,
 }
 
@@ -451,12 +397,8 @@ pub struct BackendConfig {
     /// wandering error (`σ` or `τ` 0) the prior is the heading's white
     /// noise, `dead_reckoning.heading_noise_rad`.
     ///
-    /// Measured over ten simulated marina missions (seeds 1-10) and six St
-    /// Pere replays (seeds 1-6), with the off-axis suppression of the
-    /// frontend: mean ATE 0.430 m (marina) and 0.184 m (St Pere) with a
-    /// fixed 3°, 0.336 m and 0.187 m derived. Before the off-axis
-    /// suppression the matches turned the map by a few hundredths of a
-    /// degree each, and only priors as strong as 3° held that back.
+    /// Derived priors against a fixed one, measured: EXPERIMENTS.md § Heading
+    /// priors.
     pub heading_prior_sigma_rad: Option<f64>,
     /// The final batch solve (and, with `initialisation = "current"`
     /// forced, the incremental ones). Default: Levenberg-Marquardt from the
@@ -625,9 +567,8 @@ pub struct EvaluationConfig {
     /// least `loops.min_separation_nodes` apart) form the recall set.
     /// Default 0.4: the lowest overlap at which a correctly registered
     /// pair can pass the loop quality gate. The matcher's mean intensity
-    /// at the true relative pose is about the overlap (measured on the
-    /// marina and St Pere missions: median 0.42 at overlaps 0.4-0.5, 0.27
-    /// below 0.3), and `loops.min_mean_intensity` was 0.35 when this was
+    /// at the true relative pose is about the overlap (EXPERIMENTS.md §
+    /// Evaluation), and `loops.min_mean_intensity` was 0.35 when this was
     /// set (0.30 now), so pairs that overlap less can hardly be closed by
     /// any pose the matcher finds; they are not misses of the loop closer.
     /// Lower it together with `loops.min_mean_intensity`.

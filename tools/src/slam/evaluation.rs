@@ -46,8 +46,7 @@
 //! - **Recall by overlap** (`loop_evaluation.recall_by_overlap`): the
 //!   recall pairs and those recalled in bins of ground-truth overlap, a
 //!   tenth wide from `recall_min_overlap` up. Pairs that share little are
-//!   the hard ones (the simulated marina, seed 1: 0.46 of the pairs of
-//!   overlap 0.4-0.5 against 0.93-1.0 from 0.7 up).
+//!   the hard ones (EXPERIMENTS.md § Evaluation).
 //! - **Recall budget** (`loop_evaluation.recall_budget`): each recall pair
 //!   once, as recalled; matched right at least once but never accepted
 //!   right (`right_match_rejected`, by the check that rejected its last

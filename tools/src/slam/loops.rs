@@ -50,9 +50,8 @@
 //! The matches of step 3 (a node's candidates, the retried ones, and the
 //! whole densification pass) run in parallel with rayon; their records
 //! are collected and judged in the candidates' order, so a run gives the
-//! same result on any number of threads. Measured (`echofield run` on St
-//! Pere seed 1, this 2-core machine, 4 runs each): 3.0-3.4 s wall before,
-//! 2.5-3.1 s after; on one thread nothing changes.
+//! same result on any number of threads (timings: EXPERIMENTS.md § Speed
+//! notes).
 
 pub mod checks;
 pub mod config;
@@ -300,13 +299,9 @@ impl<'a> LoopCloser<'a> {
     /// The pairs the mission pass examined and rejected only for reasons
     /// that [`RejectReason::densification_retries`], with no densified
     /// record yet: densification matches them again. Most were rejected
-    /// for their covariance and come back as partial loops. Measured
-    /// (one thread, seeds as in `LoopConfig::densify_min_predicted_overlap`):
-    /// loop recall on marina seeds 1-10 0.701-0.741 → 0.742-0.785, on St
-    /// Pere seeds 1-6 0.904-0.917 → 0.912-0.924; precision and ATE within
-    /// ±0.001 and ±0.004 m per mission. Retrying every rejected pair
-    /// instead added 0.3-0.6 points of recall and lost 0.001 of precision
-    /// on three St Pere seeds.
+    /// for their covariance and come back as partial loops (measured, and
+    /// against retrying every rejected pair: EXPERIMENTS.md § Loop
+    /// densification).
     fn retried_pairs(&self) -> Vec<(usize, usize)> {
         let mut verdict: HashMap<(usize, usize), bool> = HashMap::new();
         for r in &self.records {

@@ -11,42 +11,17 @@
 //! the dead-reckoning motion `t_odo` and the optimised motion `t_opt`)
 //! estimates `1 / (1 + ε)`.
 //!
-//! What it measures, against the same fit with the ground-truth motion in
-//! place of the optimised one (`echofield_tests::ground_truth_odometry_scale`;
-//! `echofield run`, default configuration, on missions of `echofield
-//! simulate`, the marina ones also with a `--config` file holding `[dvl]
-//! scale_error`; the St Pere replay's navigation is the real DVL and MTi):
+//! Against the same fit with the ground-truth motion in place of the optimised
+//! one (`echofield_tests::ground_truth_odometry_scale`), the check finds the
+//! sign and size of a DVL scale error to within about half a percent: the
+//! optimised motion keeps a little of the dead reckoning's error (measured:
+//! EXPERIMENTS.md § Odometry scale).
 //!
-//! | mission | DVL scale error | `scale` ± standard error | ground truth |
-//! |---|---:|---:|---:|
-//! | marina seed 1 | −1.5 % | 1.0092 ± 0.0025 | 1.0142 |
-//! | marina seed 1 | 0 | 0.9972 ± 0.0024 | 0.9990 |
-//! | marina seed 1 | +1.5 % (default) | 0.9858 ± 0.0023 | 0.9843 |
-//! | marina seed 1 | +3 % | 0.9740 ± 0.0023 | 0.9701 |
-//! | marina seed 5 | +1.5 % (default) | 0.9874 ± 0.0025 | 0.9870 |
-//! | marina seed 8 | +1.5 % (default) | 0.9892 ± 0.0029 | 0.9880 |
-//! | canyon seed 1 | +1.5 % (default) | 0.9889 ± 0.0034 | 0.9871 |
-//! | St Pere replay, seed 1 | real DVL | 0.9722 ± 0.0090 | 0.9701 |
-//!
-//! So the check finds the sign and size of a DVL scale error to within
-//! half a percent (the optimised motion keeps a little of the dead
-//! reckoning's error), and on the real St Pere log it finds that the
-//! DVL's distances are about 3 % longer than the DGPS ones.
-//!
-//! It is not fed back into the dead reckoning. The scans are
-//! motion-compensated with the dead reckoning, so the sonar's constraints
-//! carry part of its scale, and a 3° beam shortens them further: the
-//! graph solved again with the odometry's information divided by 100
-//! (the last row of `echofield error-budget`) moves 0.17 / 0.41 / 0.31 %
-//! less than the truth on marina seeds 1 / 5 / 8, and 0.49 % less with
-//! exact navigation (seed 8, `tools/configs/sim/exact_navigation.toml`),
-//! against 0.04 % with a 0.57° beam. The simulated DVL's default +1.5 %
-//! partly cancels that shortening. A DVL corrected by the check's own estimate
-//! gave worse trajectories (a throwaway patch scaling the DVL samples:
-//! marina seeds 1 / 2 / 5 / 8, ATE 0.229 / 0.261 / 0.443 / 0.523 m →
-//! 0.332 / 0.368 / 0.539 / 0.624 m; St Pere seed 1 with the samples
-//! scaled by 0.984: 0.202 → 0.348 m), and so did marina missions
-//! simulated without the scale error (0.347 / 0.306 / 0.530 / 0.683 m).
+//! It is not fed back into the dead reckoning. The scans are motion-compensated
+//! with the dead reckoning, so the sonar's constraints carry part of its scale,
+//! and a wide beam shortens them further (the last row of `echofield
+//! error-budget`); a DVL corrected by the check's own estimate gave worse
+//! trajectories (same section).
 //!
 //! The standard error is the spread of the edges about the fit, as if they
 //! were independent; it says how well the fit is determined, not how far

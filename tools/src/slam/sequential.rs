@@ -9,14 +9,11 @@
 //!   on real data (`echofield_frontend::dead_reckoning`): the DVL
 //!   innovation gate (outliers are not integrated while the covariance
 //!   ignores them) and the innovation-based DVL noise adaptation (noisy
-//!   stretches get wider covariances). Checked against ground truth, the
-//!   mean squared Mahalanobis distance of the odometry edges (3 degrees of
-//!   freedom, ideally 3) is 3.8 on the St Pere replay (4.8 with gating
-//!   only, where the last 20 edges were 1-3 m off at σ ≈ 0.4 m) and about
-//!   5 on the simulated marina missions, whose DVL has an unmodelled 1.5 %
-//!   scale error. Inflating the odometry covariance (factor 2-4, or a 1-4 %
-//!   along-track scale term) was tried and made the marina ATE worse, so
-//!   none is applied.
+//!   stretches get wider covariances). Checked against ground truth, its mean
+//!   squared Mahalanobis distance is above the ideal 3 on the St Pere replay
+//!   and on the simulated marina (whose DVL has an unmodelled scale error);
+//!   inflating the odometry covariance made the marina ATE worse, so none is
+//!   applied (measured: EXPERIMENTS.md § Odometry covariance).
 //! - **Sequential match** `S_k` vs `I_{k-1}` (eq. 5-6): the prior is the
 //!   odometry motion, the window `n_sigma` standard deviations of it
 //!   (clamped to `[min_window, max_window]`). The match becomes an edge of

@@ -5,18 +5,14 @@
 //! incidence), and that bias changes sign with the direction of the match.
 //! So a large disagreement flags a wrong match, and the mean of the forward
 //! match and the inverse of the reverse one is a better measurement than
-//! either (on the simulated marina the error of loop measurements drops
-//! from 0.29 m to 0.22 m RMS).
+//! either (measured: EXPERIMENTS.md § Symmetric match).
 //!
 //! Loop closures run the reverse match as a climb to the nearest maximum
 //! ([`Search::Local`]), sequential matches as a search of the window
-//! ([`Search::Global`]). Over ten simulated missions (marina seeds 1-6, St
-//! Pere 1-3, canyon) the climb accepts the same loops to within a few (St Pere
-//! seed 1: 473 against 472, 465 true positives either way), moves the ATE
-//! by at most 0.017 m in either direction, and costs a third of the
-//! search: 4.8% fewer instructions over a St Pere run. For the sequential
-//! matches, which the reverse check guards against distorted scans, the
-//! climb cost accuracy (marina seed 2: ATE 0.309 -> 0.348 m).
+//! ([`Search::Global`]). For loops the climb accepts nearly the same loops as a
+//! search, at the same ATE, for a third of the search's cost; for the
+//! sequential matches, which the reverse check guards against distorted scans,
+//! it cost accuracy (measured: EXPERIMENTS.md § Symmetric match).
 //!
 //! How the two are combined is a [`Fusion`]: loops take the midpoint,
 //! sequential matches the information-weighted mean (see [`Fusion`] for
@@ -36,12 +32,9 @@ use nalgebra::{Matrix3, Point2};
 /// How the forward match and the inverse of the reverse match are combined
 /// into one measurement.
 ///
-/// Measured over St Pere seeds 1-3 and marina seeds 1-6 (ATE, m), with
-/// the midpoint for loops: sequential matches by the midpoint 0.203 /
-/// 0.232 / 0.204 and a marina mean of 0.472; information-weighted 0.197 /
-/// 0.211 / 0.188 and 0.467, precision and recall within ±0.006 (canyon
-/// 0.152 -> 0.150). Weighting the loops too made the marina worse (mean
-/// 0.493, seed 4 0.388 -> 0.465 m; precision of seed 5 0.986 -> 0.973).
+/// Loops take the midpoint, sequential matches the information-weighted mean;
+/// weighting the loops too made the marina worse (measured: EXPERIMENTS.md §
+/// Symmetric match).
 /// Our reading, not measured separately: a loop's two matches look at the
 /// walls from far-apart places, their viewpoint biases differ in sign and
 /// the midpoint cancels them, while the weights lean on one side; the two

@@ -20,19 +20,14 @@ pub struct LoopConfig {
     /// Smallest predicted overlap of a candidate: the fraction of the
     /// points of `S_k`, placed at the current estimate of `j_from_k`, that
     /// lie within the sonar footprint of node `j` (the range of its
-    /// farthest returns). Default 0.5: at 0.65, revisits whose best
-    /// predicted overlap falls short were never tried (revisit recall
-    /// 0.84-0.90 on the St Pere replay, seeds 1-3; 0.90-0.92 at 0.5, ATE
-    /// 0.27-0.29 m -> 0.25-0.26 m, for 0.05-0.3 s more matching).
+    /// farthest returns). Default 0.5; a larger gate never tries the revisits
+    /// whose best predicted overlap falls short (measured: EXPERIMENTS.md §
+    /// Loop closures).
     pub min_predicted_overlap: f64,
     /// At most this many candidates are matched per new node, the ones
-    /// with the largest predicted overlap first. Default 4. It sets the
-    /// recall over node pairs against time, at about 1.2-1.4 ms per
-    /// candidate (forward and symmetric match). On the St Pere replay
-    /// (seed 1, one thread, without `densify`, which after the mission
-    /// matches the overlapping pairs left over), 4, 8, 12, 20 and 40 give
-    /// pair recall 0.20, 0.35, 0.47, 0.66 and 0.81 for 0.8, 1.5, 1.8, 2.8
-    /// and 3.2 s of matching, ATE 0.200, 0.214, 0.206, 0.205 and 0.249 m.
+    /// with the largest predicted overlap first. Default 4. It sets the recall
+    /// over node pairs against time; `densify` matches the overlapping pairs
+    /// left over after the mission (measured: EXPERIMENTS.md § Loop closures).
     pub max_candidates_per_node: usize,
     /// Search half-width in standard deviations of the relative
     /// uncertainty of the two nodes (propagated along the most certain path
@@ -71,30 +66,21 @@ pub struct LoopConfig {
     pub escalate_min_predicted_overlap: f64,
     /// Matches whose mean image intensity under the points is below this
     /// (`MatchQuality::mean_intensity`, 0-1) are rejected (`quality`).
-    /// Default 0.30. It was 0.35 before the images dropped their off-axis
-    /// echoes (`image.off_axis`), which lowered the intensity around the
-    /// walls that a slightly distorted scan lands on: at 0.35 the recall
-    /// of the St Pere replays fell from 0.91 to 0.81; at 0.30 it is 0.89 at
-    /// the same precision (0.983), and 0.27 let the ATE grow.
+    /// Default 0.30, set with the images' off-axis suppression
+    /// (`image.off_axis`), which lowers the intensity around the walls that a
+    /// slightly distorted scan lands on (measured: EXPERIMENTS.md § Loop
+    /// closures).
     pub min_mean_intensity: f64,
     /// ... or whose fraction of points inside the image is below this.
-    /// Default 0.75. Nearly every loop that the quality gate rejects
-    /// on the simulated marina fails this test, not the intensity one, and
-    /// 89% of them are right (marina seeds 1 and 5, pairs of ground-truth
-    /// overlap at least 0.4). Lowering it trades accuracy for recall
-    /// (marina seeds 1-10 / St Pere 1-6, mean ATE, precision, recall;
-    /// 2026-12-03):
-    ///
-    /// | `min_inside_fraction` | marina | St Pere |
-    /// |---|---|---|
-    /// | 0.75 (default) | 0.294 m, 0.987, 0.765 | 0.198 m, 0.991, 0.925 |
-    /// | 0.67 | 0.305 m, 0.987, 0.796 | 0.198 m, 0.991, 0.926 |
-    /// | 0.6 | 0.310 m, 0.986, 0.813 | 0.198 m, 0.991, 0.926 |
-    /// | 0.5 | 0.310 m, 0.986, 0.815 | 0.198 m, 0.991, 0.926 |
+    /// Default 0.75. Nearly every loop that the quality gate rejects on the
+    /// simulated marina fails this test, not the intensity one, and most of
+    /// them are right; lowering it trades accuracy for recall (measured:
+    /// EXPERIMENTS.md § Loop closures).
     pub min_inside_fraction: f64,
-    /// ... or whose second-best separated peak scores more than this
-    /// fraction of the best (an ambiguous, e.g. corridor-like, surface);
-    /// only with `matcher.second_peak = true`. Default 1 (no test).
+    /// No effect: the matcher no longer searches a second peak, so
+    /// `MatchQuality::second_peak_ratio` is always `None` and this test
+    /// never rejects. Kept only until it is removed together with the
+    /// checks' reading of that ratio. Default 1.
     pub max_second_peak_ratio: f64,
     /// Matches whose standard deviation exceeds `[x_m, y_m, theta_rad]` on
     /// any axis, or whose covariance is not positive definite, are
@@ -114,17 +100,11 @@ pub struct LoopConfig {
     /// Default 0.5 m, 0.5 m, 3°.
     pub reverse_window: Window,
     /// The forward match and the inverse of the reverse match must agree
-    /// to within this distance (m) ... Default 0.6. Two right matches of
-    /// one pair disagree by a few decimetres (the strongest echo of a wall
-    /// seen from two places is not the same spot), and often by just over
-    /// 0.5 m: on St Pere seed 1, 58 of the 60 candidates that 0.5 m
-    /// rejected with a disagreement of 0.50-0.60 m were right. Over St Pere
-    /// seeds 1-3 and marina seeds 1-6, 0.6 instead of 0.5 raised the
-    /// recall over node pairs from 0.88-0.90 to 0.91-0.92 (St Pere) and
-    /// from 0.66-0.71 to 0.69-0.75 (marina) with precision 0.980-0.995
-    /// instead of 0.984-0.997 and the ATE within ±0.02 m; 0.7 added a
-    /// little more recall for a little less precision, and 0.75 earlier
-    /// kept most of the loops that ended 0.5-0.8 m off.
+    /// to within this distance (m) ... Default 0.6. Two right matches of one
+    /// pair disagree by a few decimetres (the strongest echo of a wall seen
+    /// from two places is not the same spot), and often by just over 0.5 m; a
+    /// looser limit keeps the near misses (measured: EXPERIMENTS.md § Loop
+    /// closures).
     pub reverse_max_translation_m: f64,
     /// ... and this angle (rad). Default 2°.
     pub reverse_max_rotation_rad: f64,
@@ -145,27 +125,11 @@ pub struct LoopConfig {
     /// whose relative pose the optimised estimate already knows well
     /// (loop densification, [`LoopCloser::densify`](crate::slam::loops::LoopCloser::densify)):
     /// loops between all the rotations of a revisited place, not only the
-    /// `max_candidates_per_node` best. A pair costs about 0.3 ms (a local
-    /// climb instead of a search of the window). Default true: it buys
-    /// recall over node pairs for time, at the same ATE. Seeds 1-3
-    /// (marina 1-6), `densify_correlation` 1, before `densify_partial`:
-    ///
-    /// | | recall (pairs) | precision | ATE (m) | time |
-    /// |---|---|---|---|---|
-    /// | St Pere, off | 0.198-0.199 | 0.975-0.983 | 0.196-0.229 | |
-    /// | St Pere, on | 0.836-0.842 | 0.986-0.991 | 0.195-0.229 | +21 % of the instructions (24.4 -> 29.6 G) |
-    /// | marina, off | 0.32-0.34 | 0.990-0.997 | 0.31-0.93, mean 0.479 | |
-    /// | marina, on | 0.48-0.51 | 0.987-0.998 | 0.32-0.91, mean 0.474 | up to +0.3 s |
-    /// | canyon s1, off | 0.385 | 1.0 | 0.147 | |
-    /// | canyon s1, on | 0.946 | 0.997 | 0.152 | about +0.4 s |
-    ///
-    /// Without the design effect of `densify_correlation` (ρ = 0; measured
-    /// with `densify_max_sigma` 0.5 m) the extra loops, which repeat the
-    /// same geometry-biased matches many times over, pulled the
-    /// trajectories with them: St Pere 0.207-0.248 m, marina mean 0.619 m,
-    /// canyon 0.211 m. Without
-    /// `densify_max_sigma` (0.5 m as `max_sigma`) the marina's precision
-    /// was 0.972-0.985 (recall 0.58-0.61).
+    /// `max_candidates_per_node` best. A pair costs a local climb instead of a
+    /// search of the window. Default true: it buys recall over node pairs for
+    /// time, at the same ATE, provided the densified loops are down-weighted
+    /// (`densify_correlation`) and held to `densify_max_sigma` (measured:
+    /// EXPERIMENTS.md § Loop densification).
     pub densify: bool,
     /// Densification considers a pair only when its search window
     /// (`n_sigma` standard deviations of the relative uncertainty) is
@@ -181,13 +145,9 @@ pub struct LoopConfig {
     pub densify_correlation: f64,
     /// `max_sigma` for the densification pairs: densified matches whose
     /// standard deviation exceeds `[x_m, y_m, theta_rad]` on any axis are
-    /// rejected (`covariance`). Default 0.35 m, 0.35 m, 3°. The marina's
-    /// false positives are near misses of 0.5-0.8 m from matches whose
-    /// σ is 0.35-0.5 m along a quay. Over marina seeds 1-6 (precision,
-    /// recall over pairs, mean ATE): 0.5 m 0.972-0.985, 0.58-0.61,
-    /// 0.478 m; 0.4 m 0.984-0.996, 0.51-0.55, 0.475 m; 0.35 m
-    /// 0.987-0.998, 0.48-0.51, 0.474 m. St Pere's false positives do not
-    /// depend on σ (0.986-0.991 at every value).
+    /// rejected (`covariance`). Default 0.35 m, 0.35 m, 3°: the marina's false
+    /// positives are near misses from matches whose σ is a few decimetres along
+    /// a quay (measured: EXPERIMENTS.md § Loop densification).
     pub densify_max_sigma: Window,
     /// Partial loops: a densified match that fails `densify_max_sigma`
     /// along one horizontal direction only (its covariance's largest xy
@@ -209,42 +169,17 @@ pub struct LoopConfig {
     /// components are right; `report.json` counts partial loops and their
     /// constrained-component verdicts apart (`loop_evaluation`).
     ///
-    /// Seeds 1-3 (marina 1-6), one thread:
-    ///
-    /// | | recall (pairs) | precision | ATE (m) |
-    /// |---|---|---|---|
-    /// | St Pere, off | 0.836-0.842 | 0.986-0.991 | 0.203 / 0.229 / 0.195 |
-    /// | St Pere, on | 0.884-0.901 | 0.985-0.990 | 0.203 / 0.229 / 0.195 |
-    /// | marina, off | 0.48-0.51 | 0.987-0.998 | 0.32-0.91, mean 0.474 |
-    /// | marina, on | 0.66-0.71 | 0.984-0.997 | 0.33-0.93, mean 0.472 |
-    /// | canyon s1, off / on | 0.946 | 0.997 | 0.152 |
-    ///
-    /// St Pere gets 139-163 partial loops, the marina 157-178, the canyon
-    /// 3; of those 1 466 loops, 1 463 are within 0.5 m across their wall
-    /// and 3° in heading, and 32 are false by the whole-pose verdict.
     /// Partial loops while the mission runs, whose prior is the dead
-    /// reckoning's, were false more often (marina seed 5: 9 of 32) and are
-    /// not made.
+    /// reckoning's, were false more often and are not made (measured:
+    /// EXPERIMENTS.md § Loop densification).
     pub densify_partial: bool,
     /// Smallest predicted overlap (as for `min_predicted_overlap`) of a
     /// pair matched by `densify`. Default 0.4, the ground-truth overlap
     /// above which the evaluation counts a pair for recall
     /// (`evaluation.recall_min_overlap`). The candidates while the mission
-    /// runs keep `min_predicted_overlap`: lowering that one to 0.4 as well
-    /// raised the St Pere ATE from 0.187 to 0.241 m (mean of seeds 1-6).
-    ///
-    /// Seeds 1-6 (marina 1-10), one thread:
-    ///
-    /// | densify gate | St Pere recall | St Pere ATE (mean) | marina recall | marina ATE (mean) |
-    /// |---|---|---|---|---|
-    /// | 0.5 | 0.890-0.906 | 0.187 m | 0.691-0.731 | 0.336 m |
-    /// | 0.45 | 0.899-0.913 | 0.188 m | 0.695-0.735 | 0.336 m |
-    /// | 0.4 | 0.904-0.917 | 0.194 m | 0.701-0.741 | 0.336 m |
-    /// | 0.3 | 0.905-0.920 | 0.194 m | 0.701-0.742 | 0.336 m |
-    ///
-    /// (Measured before densification retried the pairs the mission had
-    /// rejected for how they were searched; with that, at 0.4: St Pere
-    /// 0.912-0.924, marina 0.742-0.785, ATE unchanged.)
+    /// runs keep `min_predicted_overlap`: lowering that one as well cost
+    /// accuracy on the St Pere replay (measured: EXPERIMENTS.md § Loop
+    /// densification).
     pub densify_min_predicted_overlap: f64,
 }
 

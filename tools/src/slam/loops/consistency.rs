@@ -38,9 +38,8 @@ use std::collections::HashMap;
 /// Limit on the work of one clique search over all its components, in
 /// bit-set words visited (each call of the cover search visits its alive
 /// vertices' rows once or a few times). Real missions' searches stay far
-/// below it; on random graphs of mostly wrong loops (300 loops with half
-/// the pairs in conflict, 1000 with 5%, 2000 with 1%) it stops a search
-/// within 0.3 s in release builds.
+/// below it; on random graphs of mostly wrong loops it stops a search within a
+/// fraction of a second in release builds (EXPERIMENTS.md § Speed notes).
 pub const MAX_CLIQUE_WORK: usize = 100_000_000;
 
 /// Dead reckoning at the nodes, for the motions of the cycle test.

@@ -16,7 +16,6 @@
 //! | `score` | `s(x*)` of eq. (5) |
 //! | `mean_intensity` | `s(x*) / N`: mean image value under the points (0-1, higher is better) |
 //! | `inside_fraction` | fraction of the points inside the image (0-1) |
-//! | `second_peak_ratio` | best score outside the peak zone / best score (0-1, lower is more distinct) |
 //! | `points` | scan points used |
 //! | `surface_fit_residual` | relative RMS residual of the quadratic fit of the peak |
 //! | `cov_xx` ... `cov_tt` | covariance of the loop's measurement (m², m·rad, rad²): xx, xy, xt, yy, yt, tt; the match's, or for a partial loop its marginal across the unconstrained direction with 10 m along it |
@@ -36,7 +35,7 @@ use std::io::Write;
 use std::path::Path;
 
 /// The header of `loops.csv`, in order.
-pub const COLUMNS: [&str; 34] = [
+pub const COLUMNS: [&str; 33] = [
     "from",
     "to",
     "examined_at",
@@ -51,7 +50,6 @@ pub const COLUMNS: [&str; 34] = [
     "score",
     "mean_intensity",
     "inside_fraction",
-    "second_peak_ratio",
     "points",
     "surface_fit_residual",
     "cov_xx",
@@ -87,7 +85,6 @@ pub struct LoopRow {
     pub score: Option<f64>,
     pub mean_intensity: Option<f64>,
     pub inside_fraction: Option<f64>,
-    pub second_peak_ratio: Option<f64>,
     pub points: Option<usize>,
     pub surface_fit_residual: Option<f64>,
     /// `[xx, xy, xt, yy, yt, tt]`.
@@ -128,7 +125,6 @@ impl LoopRow {
             score: r.score,
             mean_intensity: r.quality.as_ref().map(|q| q.mean_intensity),
             inside_fraction: r.quality.as_ref().map(|q| q.inside_fraction),
-            second_peak_ratio: r.quality.as_ref().and_then(|q| q.second_peak_ratio),
             points: r.quality.as_ref().map(|q| q.points),
             surface_fit_residual: r.quality.as_ref().map(|q| q.surface_fit_residual),
             covariance: c.map(|c| {
@@ -194,7 +190,6 @@ impl LoopRow {
             f(self.score),
             f(self.mean_intensity),
             f(self.inside_fraction),
-            f(self.second_peak_ratio),
             self.points.map(|v| v.to_string()).unwrap_or_default(),
             f(self.surface_fit_residual),
         ]);
@@ -373,7 +368,6 @@ impl RowParser<'_> {
             score: self.number("score")?,
             mean_intensity: self.number("mean_intensity")?,
             inside_fraction: self.number("inside_fraction")?,
-            second_peak_ratio: self.number("second_peak_ratio")?,
             points: self.parse("points", "a count")?,
             surface_fit_residual: self.number("surface_fit_residual")?,
             covariance: has_cov.then_some(cov),
@@ -422,7 +416,6 @@ mod tests {
             score: Some(210.5),
             mean_intensity: Some(0.625),
             inside_fraction: Some(1.0),
-            second_peak_ratio: Some(0.5),
             points: Some(337),
             surface_fit_residual: Some(0.03),
             covariance: Some([0.01, 0.0, 0.001, 0.02, 0.0, 0.0004]),

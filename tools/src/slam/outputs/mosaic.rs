@@ -8,9 +8,8 @@
 //! 2 x 2 sub-samples dropped into the world cells under them. Overlapping
 //! nodes are blended by max (or mean).
 //!
-//! Re-rasterising every node's beams at the optimised poses instead costs
-//! about 5 ms per node (1.1 s for the 217 nodes of the St Pere replay, a
-//! third of the whole run's budget) and differs only by the images' light
+//! Re-rasterising every node's beams at the optimised poses instead costs far
+//! more (EXPERIMENTS.md § Speed notes) and differs only by the images' light
 //! smoothing.
 //!
 //! The picture is north up (row 0 is the largest y), one pixel per cell,

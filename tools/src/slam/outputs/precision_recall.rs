@@ -5,8 +5,6 @@
 //! ([`METRICS`]):
 //! - `mean_intensity`: `s(x*) / N`, the mean image value under the scan
 //!   points at the optimum (eq. 5 normalised; accept when `≥ t`);
-//! - `second_peak_ratio`: best score outside the peak's neighbourhood over
-//!   the best score (accept when `≤ t`: a distinct peak);
 //! - `inside_fraction`: the fraction of the scan points inside the image at
 //!   the optimum (accept when `≥ t`). On the simulated marina nearly every
 //!   pair of ground-truth overlap ≥ 0.4 that the pipeline's quality gate
@@ -53,29 +51,19 @@ pub struct GateMetric {
     pub name: &'static str,
     pub direction: Direction,
     pub value: fn(&LoopRow) -> Option<f64>,
-    /// When candidates have no value for it, if that has a known reason.
-    pub absent_when: Option<&'static str>,
 }
 
 /// The metrics `eval-loops` sweeps.
-pub const METRICS: [GateMetric; 3] = [
+pub const METRICS: [GateMetric; 2] = [
     GateMetric {
         name: "mean_intensity",
         direction: Direction::AtLeast,
         value: |r| r.mean_intensity,
-        absent_when: None,
-    },
-    GateMetric {
-        name: "second_peak_ratio",
-        direction: Direction::AtMost,
-        value: |r| r.second_peak_ratio,
-        absent_when: Some("it is measured only with `[matcher] second_peak = true`"),
     },
     GateMetric {
         name: "inside_fraction",
         direction: Direction::AtLeast,
         value: |r| r.inside_fraction,
-        absent_when: None,
     },
 ];
 
@@ -96,9 +84,6 @@ pub struct PrPoint {
 pub struct PrSweep {
     pub metric: &'static str,
     pub direction: Direction,
-    /// [`GateMetric::absent_when`].
-    #[serde(skip)]
-    pub absent_when: Option<&'static str>,
     /// Candidates with a verdict.
     pub candidates: usize,
     /// Of which correct.
@@ -134,10 +119,8 @@ impl PrSweep {
                 p.false_positives
             ),
             None if self.points.is_empty() => format!(
-                "{}: no candidate has a value, nothing to sweep{}",
-                self.metric,
-                self.absent_when
-                    .map_or(String::new(), |why| format!(" ({why})"))
+                "{}: no candidate has a value, nothing to sweep",
+                self.metric
             ),
             None => format!("{}: no correct candidate, no best threshold", self.metric),
         }
@@ -209,7 +192,6 @@ pub fn sweep(rows: &[LoopRow], metric: &GateMetric) -> PrSweep {
     PrSweep {
         metric: metric.name,
         direction: metric.direction,
-        absent_when: metric.absent_when,
         candidates: judged.len(),
         positives,
         points,
