@@ -51,8 +51,6 @@ pub struct SlamConfig {
     pub image: ImageConfig,
     /// The scan matcher (eq. 5-6), shared by sequential and loop matches.
     pub matcher: MatcherConfig,
-    /// Motion compensation of the scans and images.
-    pub motion_compensation: MotionCompensationConfig,
     /// Sequential matches `S_k` vs `I_{k-1}`.
     pub sequential: SequentialConfig,
     /// Loop-closure candidates, checks and mutual consistency.
@@ -84,7 +82,6 @@ impl Default for SlamConfig {
                 second_peak: false,
                 ..MatcherConfig::default()
             },
-            motion_compensation: MotionCompensationConfig::default(),
             sequential: SequentialConfig::default(),
             loops: LoopConfig::default(),
             backend: BackendConfig::default(),
@@ -146,69 +143,6 @@ impl SlamConfig {
         self.evaluation.validate()?;
         Ok(())
     }
-}
-
-/// How the beams of a rotation are placed in its reference frame.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct MotionCompensationConfig {
-    /// Run the pipeline twice: the second pass rebuilds every scan and
-    /// image with the dead reckoning bent through the first pass's
-    /// optimised node poses ([`super::refine`]), then matches and
-    /// optimises again. Odometry edges and priors still come from the dead
-    /// reckoning. The outputs and the report's counts are the second
-    /// pass's; its stage timings add up both. About doubles the run time.
-    /// Default false: it pays where the dead reckoning is poor (the real
-    /// St Pere navigation errs by 0.5 m per rotation, median, and by up to
-    /// 1.6 m in sharp turns), not on the simulated marina (0.23 m per
-    /// rotation). Seeds 1-3, one thread:
-    ///
-    /// | | ATE (m) | precision | time (St Pere) |
-    /// |---|---|---|---|
-    /// | St Pere, off | 0.191-0.230 | 0.975-0.985 | 2.5 s |
-    /// | St Pere, on | 0.162-0.175 | 0.981-0.983 | 4.8-5.1 s |
-    /// | St Pere, ground truth as compensation | 0.134-0.168 | 1.0 | |
-    /// | marina, off | 0.32-0.48 | 0.993-0.997 | |
-    /// | marina, on | 0.32-0.55 | 0.990-0.997 | |
-    ///
-    /// The bend between two nodes is linear, so errors of the dead
-    /// reckoning that change within a rotation stay: the St Pere loops of
-    /// rotation 87 (a 51° turn) remain 0.5-0.6 m off with it, and not with
-    /// the ground truth. A third pass did not help (0.193 / 0.157 m on
-    /// seeds 1 and 2).
-    ///
-    /// The table predates the off-axis suppression of the frontend and the
-    /// derived heading priors (`backend.heading_prior_sigma_rad`). With
-    /// them the first pass gives 0.171-0.188 m on St Pere seeds 1-3 and the
-    /// refined pass 0.257-0.306 m (0.186-0.250 m with 3° heading priors):
-    /// it no longer pays (figures with `loops.densify_min_predicted_overlap`
-    /// 0.5). What is known of why, from the graphs' edges compared with
-    /// the ground truth (`echofield error-budget` does this): on St Pere
-    /// seeds 1-6 the refined loops are better (precision 0.989-0.993
-    /// against 0.982-0.987, recall 0.92-0.94 against 0.90-0.92), and on
-    /// seeds 3 and 6 and marina seed 1 so are the sequential matches in
-    /// random error, but the sequential matches' scale error about doubles
-    /// (St Pere +0.10% -> +0.18-0.21%, marina -0.15% -> -0.35% of the
-    /// displacement): the bend carries the first pass's scale error into
-    /// the motion inside every rotation, and matching the scans built that
-    /// way repeats it. Where no loop holds the chain (St Pere nodes
-    /// 156-175), a few sequential edges decide how the dead reckoning's
-    /// errors (up to 1.6 m per rotation there) spread: with every match
-    /// replaced by its ground-truth value, the refined pass's sequential
-    /// covariances still give 0.25 m on seed 6 against 0.15 m for the
-    /// first pass's, 0.13 m when the sequential edge 170-171, which only
-    /// the refined pass accepted, is dropped, and 0.12 m when the edge
-    /// 171-172 takes the first pass's covariance instead.
-    ///
-    /// Current figures (2026-12-03; mean over marina seeds 1-10 and St
-    /// Pere seeds 1-6 of ATE, loop precision and recall): off, marina
-    /// 0.294 m, 0.987, 0.765 and St Pere 0.198 m, 0.991, 0.925; on, marina
-    /// 0.316 m, 0.988, 0.767 and St Pere 0.256 m, 0.998, 0.955. The
-    /// refined loops are nearly all right, and the trajectory is still
-    /// worse. Keeping the first pass's sequential edges in the second
-    /// (a probe, not an option) gave St Pere 0.209 m at the same
-    /// precision and recall.
-    pub refine: bool,
 }
 
 /// Checks that `value` is finite and within `[lo, hi]`.

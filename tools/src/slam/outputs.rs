@@ -6,6 +6,7 @@
 //! | `trajectory_tum.txt` | optimised node poses, TUM `stamp x y z qx qy qz qw` |
 //! | `dead_reckoning_tum.txt` | dead reckoning at the node stamps, TUM |
 //! | `ground_truth_tum.txt` | ground truth at the node stamps (its own frame), TUM; only with ground truth |
+//! | `online_tum.txt` | `run --online`: each node's estimate as it was when emitted, TUM |
 //! | `poses.csv` | optimised node poses, `stamp_s,x_m,y_m,theta_rad` |
 //! | `graph.g2o` | the optimised pose graph (`VERTEX_SE2`, `EDGE_SE2`, `FIX`) |
 //! | `loops.csv` | every loop-closure candidate ([`loops_csv`]) |
@@ -66,6 +67,7 @@ pub const FOLDER_FILES: &[&str] = &[
     "trajectory_tum.txt",
     "dead_reckoning_tum.txt",
     "ground_truth_tum.txt",
+    "online_tum.txt",
     "poses.csv",
     "graph.g2o",
     "loops.csv",
