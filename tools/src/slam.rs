@@ -4,7 +4,7 @@
 //! end-to-end tests call; it replays the mission, record by record in
 //! time order, through the [`SlamEngine`] ([`engine`]), which is also
 //! what an online user pushes samples into ([`run_mission_online`],
-//! `echofield run --online`). Per completed rotation:
+//! `echofield run M.mcap --online --output DIR`). Per completed rotation:
 //!
 //! 1. **Dead reckoning** (EKF over DVL and heading, [`dead_reckoning`](echofield_frontend::dead_reckoning)):
 //!    the causal filter online, the navigation computed beforehand over

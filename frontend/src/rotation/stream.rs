@@ -108,9 +108,7 @@ impl RotationStream {
     /// The unit the end of the data cuts, when it is kept (a full turn, or a
     /// partial one with `keep_partial`).
     pub fn finish(&mut self) -> Option<Rotation> {
-        if self.prev.is_none() {
-            return None;
-        }
+        self.prev.as_ref()?;
         let unit = self.cutter.finish(self.pushed);
         let rotation = classify(
             &unit,

@@ -1,4 +1,4 @@
-//! `echofield run --online`: a mission replayed through the causal engine,
+//! `run --online` (the CLI): a mission replayed through the causal engine,
 //! with what it emitted while running (each node's estimate as it was when
 //! its rotation completed) and the work each rotation took.
 
@@ -53,7 +53,7 @@ fn online_report(
         .filter_map(|(node, e)| {
             let truth = node.ground_truth?;
             Some((
-                e.clone(),
+                *e,
                 TrajectoryPose {
                     stamp_s: node.stamp_s,
                     pose: truth,

@@ -8,6 +8,7 @@ use crate::slam::loops::LoopCloser;
 use crate::slam::result::{RejectReason, SlamOutput};
 use crate::slam::{SlamConfig, SlamError, input_checks};
 use echofield_backend::{RobustSolveSummary, edge_error};
+use echofield_frontend::FrontendError;
 use echofield_frontend::sensors::GroundTruthPose;
 use echofield_frontend::warnings::{Warning, WarningKind, Warnings};
 use echofield_graph::{EdgeKind, PoseGraph};
@@ -31,6 +32,16 @@ impl SlamEngine<'_> {
         }
         self.latest_s = f64::INFINITY;
         self.process_ready(&crate::slam::NoProgress)?;
+        if self.rotation_ranges.is_empty() {
+            let error = FrontendError::insufficient(
+                "rotation assembly",
+                format!(
+                    "no complete rotation or sector sweep in {} beams (set keep_partial to keep partial ones)",
+                    self.rotations.beams()
+                ),
+            );
+            return Err(SlamError::frontend("rotation assembly", error));
+        }
         if self.graph.nodes.is_empty() {
             return Err(SlamError::NoNodes {
                 mission: self.mission_name.clone(),

@@ -33,30 +33,8 @@ impl SlamEngine<'_> {
         finish_warnings: Warnings,
         ground_truth: &[GroundTruthPose],
     ) -> Result<SlamOutput, SlamError> {
-        let late = self.navigation.late_samples();
+        let mut warnings = self.input_warnings(&summary, finish_warnings);
         let navigation = self.navigation.finish()?;
-        let mut warnings = self.input.warnings.clone();
-        warnings.extend(input_checks::dropped_rotations(&self.rotation_ranges));
-        warnings.extend(mounting_warning(&self.mounting));
-        report_skipped(&self.skipped, &mut warnings);
-        if late > 0 {
-            warnings.push(Warning::new(
-                WarningKind::StampsResorted,
-                late,
-                format!("{late} DVL or attitude samples came after a later sample of the other stream and were skipped (push samples in time order)"),
-            ));
-        }
-        warnings.extend(finish_warnings.iter().cloned());
-        if summary.hit_iteration_cap() {
-            warnings.push(Warning::new(
-                WarningKind::Solver,
-                1,
-                format!(
-                    "the final solve stopped at its iteration cap (backend.solver.max_iterations = {}): the trajectory may not be at the optimum",
-                    self.config.backend.solver.max_iterations
-                ),
-            ));
-        }
         let config = self.config;
         let graph_state = self.graph;
         let nodes = graph_state.nodes;
@@ -75,16 +53,12 @@ impl SlamEngine<'_> {
         let sequential = graph_state.sequential;
         let estimate = graph_state.estimate;
         let timings = StageTimings {
-            reading_s: None,
-            dead_reckoning_s: self.timings.dead_reckoning_s,
-            scan_image_building_s: self.timings.scan_image_building_s,
             matching_s: graph_state.sequential_s
                 + (graph_state.loops_s - estimate.incremental_time_s - closer.validation_time_s)
                     .max(0.0),
             loop_validation_s: closer.validation_time_s,
             optimisation_s: final_solve_s + estimate.incremental_time_s,
-            evaluation_s: 0.0,
-            writing_s: None,
+            ..self.timings
         };
         let mut report = Report {
             run: None,
@@ -174,6 +148,38 @@ impl SlamEngine<'_> {
             images,
             image_config: config.image.clone(),
         })
+    }
+}
+
+impl SlamEngine<'_> {
+    /// The warnings about the input and the run, in the order of the
+    /// stages: the caller's, dropped and skipped rotations, the mounting,
+    /// late navigation samples, the finish's, the final solve's.
+    fn input_warnings(&self, summary: &RobustSolveSummary, finish: Warnings) -> Warnings {
+        let mut warnings = self.input.warnings.clone();
+        warnings.extend(input_checks::dropped_rotations(&self.rotation_ranges));
+        warnings.extend(mounting_warning(&self.mounting));
+        report_skipped(&self.skipped, &mut warnings);
+        let late = self.navigation.late_samples();
+        if late > 0 {
+            warnings.push(Warning::new(
+                WarningKind::StampsResorted,
+                late,
+                format!("{late} DVL or attitude samples came after a later sample of the other stream and were skipped (push samples in time order)"),
+            ));
+        }
+        warnings.extend(finish.iter().cloned());
+        if summary.hit_iteration_cap() {
+            warnings.push(Warning::new(
+                WarningKind::Solver,
+                1,
+                format!(
+                    "the final solve stopped at its iteration cap (backend.solver.max_iterations = {}): the trajectory may not be at the optimum",
+                    self.config.backend.solver.max_iterations
+                ),
+            ));
+        }
+        warnings
     }
 }
 
