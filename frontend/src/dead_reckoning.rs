@@ -84,12 +84,14 @@
 //! ```
 
 mod ekf;
+mod forward;
 pub mod gyro_check;
 mod model;
 mod navigation;
 mod smoother;
 pub mod synthetic;
 
+pub use forward::ForwardFilter;
 pub use navigation::{DvlGap, HeadingBias, Navigation, NavigationStep};
 
 use crate::error::FrontendError;
@@ -345,9 +347,47 @@ pub fn run(mission: &Mission, config: &DeadReckoningConfig) -> Result<Navigation
         );
         config.yaw_rate_noise_radps = c.yaw_rate_noise_radps;
     }
-    let mut navigation = ekf::filter(mission, &config)?;
-    navigation.set_yaw_rate_noise(config.yaw_rate_noise_radps, yaw_rate_check);
-    Ok(navigation)
+    let mut filter = ForwardFilter::new(&config, &mission.mounting, config.smoothing)?;
+    filter.set_yaw_rate_noise(config.yaw_rate_noise_radps, yaw_rate_check);
+    for record in merged_records(mission) {
+        match record {
+            Record::Dvl(s) => filter.push_dvl(s)?,
+            Record::Attitude(a) => filter.push_attitude(a)?,
+        }
+    }
+    filter.finish(config.smoothing)
+}
+
+/// One navigation record of a mission.
+pub enum Record<'a> {
+    Dvl(&'a crate::sensors::DvlVelocity),
+    Attitude(&'a crate::sensors::Attitude),
+}
+
+impl Record<'_> {
+    /// The record's stamp, s.
+    pub fn stamp_s(&self) -> f64 {
+        match self {
+            Record::Dvl(s) => s.stamp_s,
+            Record::Attitude(a) => a.stamp_s,
+        }
+    }
+}
+
+/// The DVL samples (valid or not) and attitude samples of `mission` merged
+/// in time order; at equal stamps DVL comes first (each stream is assumed
+/// in order, as [`run`] checks).
+pub fn merged_records(mission: &Mission) -> impl Iterator<Item = Record<'_>> {
+    let (mut dvl, mut attitude) = (
+        mission.dvl.iter().peekable(),
+        mission.attitude.iter().peekable(),
+    );
+    std::iter::from_fn(move || match (dvl.peek(), attitude.peek()) {
+        (Some(d), Some(a)) if d.stamp_s <= a.stamp_s => dvl.next().map(Record::Dvl),
+        (Some(_), Some(_)) | (None, Some(_)) => attitude.next().map(Record::Attitude),
+        (Some(_), None) => dvl.next().map(Record::Dvl),
+        (None, None) => None,
+    })
 }
 
 #[cfg(test)]

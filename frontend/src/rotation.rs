@@ -167,28 +167,13 @@ pub fn assemble_rotations(
     let limits = Limits::new(beams, config);
     let mut rotations = Vec::new();
     for unit in cut_units(beams, &limits) {
-        let coverage_rad = (unit.span_rad + limits.step_rad).min(TAU);
-        let full = unit.ended_by == Boundary::Full
-            || unit.span_rad + limits.step_rad >= TAU - 0.5 * limits.step_rad;
-        let kind = match (unit.started_by, unit.ended_by) {
-            _ if full => RotationKind::Full,
-            (Boundary::Reversal, Boundary::Reversal) => RotationKind::SectorSweep,
-            _ => RotationKind::Partial,
-        };
-        let keep = kind != RotationKind::Partial
-            || (config.keep_partial && coverage_rad >= config.min_partial_coverage_rad);
-        if keep && unit.beams.len() >= 2 {
-            let start_s = beams[unit.beams.start].stamp_s;
-            let end_s = beams[unit.beams.end - 1].stamp_s;
-            rotations.push(Rotation {
-                index: rotations.len(),
-                beams: unit.beams,
-                start_s,
-                end_s,
-                reference_stamp_s: 0.5 * (start_s + end_s),
-                coverage_rad,
-                kind,
-            });
+        let stamps_s = (
+            beams[unit.beams.start].stamp_s,
+            beams[unit.beams.end.max(unit.beams.start + 1) - 1].stamp_s,
+        );
+        if let Some(mut rotation) = classify(&unit, stamps_s, limits.step_rad, config) {
+            rotation.index = rotations.len();
+            rotations.push(rotation);
         }
     }
     if rotations.is_empty() {
@@ -201,6 +186,38 @@ pub fn assemble_rotations(
         ));
     }
     Ok(rotations)
+}
+
+/// The rotation a unit gives under the median angular step `step_rad`, or
+/// `None` when it is dropped (index 0: the caller numbers them).
+/// `(start_s, end_s)` are the stamps of its first and last beams.
+fn classify(
+    unit: &Unit,
+    (start_s, end_s): (f64, f64),
+    step_rad: f64,
+    config: &RotationConfig,
+) -> Option<Rotation> {
+    let coverage_rad = (unit.span_rad + step_rad).min(TAU);
+    let full = unit.ended_by == Boundary::Full || unit.span_rad + step_rad >= TAU - 0.5 * step_rad;
+    let kind = match (unit.started_by, unit.ended_by) {
+        _ if full => RotationKind::Full,
+        (Boundary::Reversal, Boundary::Reversal) => RotationKind::SectorSweep,
+        _ => RotationKind::Partial,
+    };
+    let keep = kind != RotationKind::Partial
+        || (config.keep_partial && coverage_rad >= config.min_partial_coverage_rad);
+    if !keep || unit.beams.len() < 2 {
+        return None;
+    }
+    Some(Rotation {
+        index: 0,
+        beams: unit.beams.clone(),
+        start_s,
+        end_s,
+        reference_stamp_s: 0.5 * (start_s + end_s),
+        coverage_rad,
+        kind,
+    })
 }
 
 /// The thresholds derived from the stream: median angular step, largest
@@ -272,29 +289,64 @@ struct Unit {
 
 /// Cuts the stream at every boundary (see the module doc).
 fn cut_units(beams: &[SonarBeam], limits: &Limits) -> Vec<Unit> {
-    let mut units = Vec::new();
-    let (mut start, mut started_by) = (0, Boundary::Start);
-    let (mut cumulative_rad, mut direction) = (0.0, 0.0);
-    for i in 1..beams.len() {
-        let (prev, beam) = (&beams[i - 1], &beams[i]);
+    let mut cutter = Cutter::default();
+    let mut units: Vec<Unit> = (1..beams.len())
+        .filter_map(|i| {
+            let max_gap_s = limits.max_gap_before_s(i);
+            cutter.push(
+                i,
+                &beams[i - 1],
+                &beams[i],
+                limits.step_rad,
+                max_gap_s,
+                limits.max_step_rad,
+            )
+        })
+        .collect();
+    units.push(cutter.finish(beams.len()));
+    units
+}
+
+/// The state of the cut between beams: where the current unit started and
+/// how far it has turned.
+#[derive(Default)]
+struct Cutter {
+    start: usize,
+    started_by: Option<Boundary>,
+    cumulative_rad: f64,
+    direction: f64,
+}
+
+impl Cutter {
+    /// Beam `i` follows `prev`; returns the unit it ends, if any, with the
+    /// limits in force at beam `i`.
+    fn push(
+        &mut self,
+        i: usize,
+        prev: &SonarBeam,
+        beam: &SonarBeam,
+        step_rad: f64,
+        max_gap_s: f64,
+        max_step_rad: f64,
+    ) -> Option<Unit> {
         let step = wrap_angle(beam.angle_rad - prev.angle_rad);
-        let reversal = step.abs() > limits.max_step_rad
-            || (step != 0.0 && direction != 0.0 && step.signum() != direction);
-        let boundary = if beam.stamp_s - prev.stamp_s > limits.max_gap_before_s(i) {
-            Some(Boundary::Gap)
+        let reversal = step.abs() > max_step_rad
+            || (step != 0.0 && self.direction != 0.0 && step.signum() != self.direction);
+        let ended_by = if beam.stamp_s - prev.stamp_s > max_gap_s {
+            Boundary::Gap
         } else if !same_geometry(prev, beam) {
-            Some(Boundary::GeometryChange)
+            Boundary::GeometryChange
         } else if reversal {
-            Some(Boundary::Reversal)
+            Boundary::Reversal
         } else {
-            cumulative_rad += step;
-            if direction == 0.0 && step != 0.0 {
-                direction = step.signum();
+            self.cumulative_rad += step;
+            if self.direction == 0.0 && step != 0.0 {
+                self.direction = step.signum();
             }
-            (cumulative_rad.abs() >= TAU - 0.5 * limits.step_rad).then_some(Boundary::Full)
-        };
-        let Some(ended_by) = boundary else {
-            continue;
+            if self.cumulative_rad.abs() < TAU - 0.5 * step_rad {
+                return None;
+            }
+            Boundary::Full
         };
         // A full turn ends before beam i, which repeats the first angle.
         let last_step = if ended_by == Boundary::Full {
@@ -302,63 +354,76 @@ fn cut_units(beams: &[SonarBeam], limits: &Limits) -> Vec<Unit> {
         } else {
             0.0
         };
-        units.push(Unit {
-            beams: start..i,
-            started_by,
+        let unit = Unit {
+            beams: self.start..i,
+            started_by: self.started_by.unwrap_or(Boundary::Start),
             ended_by,
-            span_rad: (cumulative_rad - last_step).abs(),
-        });
-        (start, started_by, cumulative_rad) = (i, ended_by, 0.0);
+            span_rad: (self.cumulative_rad - last_step).abs(),
+        };
+        (self.start, self.started_by, self.cumulative_rad) = (i, Some(ended_by), 0.0);
         if ended_by != Boundary::Full {
-            direction = 0.0;
+            self.direction = 0.0;
+        }
+        Some(unit)
+    }
+
+    /// The unit the end of the data cuts (`len` beams in all).
+    fn finish(&self, len: usize) -> Unit {
+        Unit {
+            beams: self.start..len,
+            started_by: self.started_by.unwrap_or(Boundary::Start),
+            ended_by: Boundary::End,
+            span_rad: self.cumulative_rad.abs(),
         }
     }
-    units.push(Unit {
-        beams: start..beams.len(),
-        started_by,
-        ended_by: Boundary::End,
-        span_rad: cumulative_rad.abs(),
-    });
-    units
 }
 
 fn check_beams(beams: &[SonarBeam]) -> Result<(), FrontendError> {
     for (i, beam) in beams.iter().enumerate() {
-        let record = || format!("beam {i}");
-        if !beam.stamp_s.is_finite() {
-            return Err(FrontendError::input(record(), "stamp_s", "not finite"));
-        }
-        if !beam.angle_rad.is_finite() {
-            return Err(FrontendError::input(record(), "angle_rad", "not finite"));
-        }
-        if let Some(why) = crate::screening::implausible_angle(beam.angle_rad) {
-            return Err(FrontendError::input(record(), "angle_rad", why));
-        }
-        if !(beam.bin_size_m.is_finite() && beam.bin_size_m > 0.0) {
-            return Err(FrontendError::input(
-                record(),
-                "bin_size_m",
-                format!("must be finite and > 0, got {}", beam.bin_size_m),
-            ));
-        }
-        if !beam.first_bin_range_m.is_finite() {
-            return Err(FrontendError::input(
-                record(),
-                "first_bin_range_m",
-                "not finite",
-            ));
-        }
-        if i > 0 && beam.stamp_s < beams[i - 1].stamp_s {
-            return Err(FrontendError::input(
-                record(),
-                "stamp_s",
-                format!(
-                    "{} s is earlier than the previous beam's {} s",
-                    beam.stamp_s,
-                    beams[i - 1].stamp_s
-                ),
-            ));
-        }
+        check_beam(i, beam, i.checked_sub(1).map(|p| &beams[p]))?;
+    }
+    Ok(())
+}
+
+/// Checks beam `i` of the stream (its predecessor `prev`): finite stamp,
+/// angle and first-bin range, a plausible angle, a positive bin size, a
+/// stamp not earlier than the previous beam's.
+fn check_beam(i: usize, beam: &SonarBeam, prev: Option<&SonarBeam>) -> Result<(), FrontendError> {
+    let record = || format!("beam {i}");
+    if !beam.stamp_s.is_finite() {
+        return Err(FrontendError::input(record(), "stamp_s", "not finite"));
+    }
+    if !beam.angle_rad.is_finite() {
+        return Err(FrontendError::input(record(), "angle_rad", "not finite"));
+    }
+    if let Some(why) = crate::screening::implausible_angle(beam.angle_rad) {
+        return Err(FrontendError::input(record(), "angle_rad", why));
+    }
+    if !(beam.bin_size_m.is_finite() && beam.bin_size_m > 0.0) {
+        return Err(FrontendError::input(
+            record(),
+            "bin_size_m",
+            format!("must be finite and > 0, got {}", beam.bin_size_m),
+        ));
+    }
+    if !beam.first_bin_range_m.is_finite() {
+        return Err(FrontendError::input(
+            record(),
+            "first_bin_range_m",
+            "not finite",
+        ));
+    }
+    if let Some(prev) = prev
+        && beam.stamp_s < prev.stamp_s
+    {
+        return Err(FrontendError::input(
+            record(),
+            "stamp_s",
+            format!(
+                "{} s is earlier than the previous beam's {} s",
+                beam.stamp_s, prev.stamp_s
+            ),
+        ));
     }
     Ok(())
 }
@@ -379,6 +444,9 @@ fn median(values: impl Iterator<Item = f64>) -> Option<f64> {
     let (_, m, _) = v.select_nth_unstable_by(mid, f64::total_cmp);
     Some(*m)
 }
+
+mod stream;
+pub use stream::RotationStream;
 
 #[cfg(test)]
 mod tests;

@@ -196,9 +196,8 @@ impl MissionRotations {
         Ok(())
     }
 
-    /// Replaces the navigation by the one that the SLAM pipeline's second
-    /// pass (`[motion_compensation] refine`) compensates the motion with:
-    /// the dead reckoning bent through the optimised node poses of a run
+    /// Replaces the navigation by the dead reckoning bent
+    /// ([`crate::slam::refine`]) through the optimised node poses of a run
     /// of [`crate::slam::run_mission`] with `slam`, whose dead reckoning,
     /// rotation, segmentation and image sections are replaced by `config`'s
     /// (the run's dead reckoning is then the one bent). No ground truth is

@@ -1,9 +1,14 @@
 //! The SLAM pipeline: frontend and backend joined over a whole mission.
 //!
 //! [`run_mission`] is what `echofield run`, `echofield demo` and the
-//! end-to-end tests call:
+//! end-to-end tests call; it replays the mission, record by record in
+//! time order, through the [`SlamEngine`] ([`engine`]), which is also
+//! what an online user pushes samples into ([`run_mission_online`],
+//! `echofield run M.mcap --online --output DIR`). Per completed rotation:
 //!
-//! 1. **Dead reckoning** (EKF over DVL and heading, [`dead_reckoning`](echofield_frontend::dead_reckoning)).
+//! 1. **Dead reckoning** (EKF over DVL and heading, [`dead_reckoning`](echofield_frontend::dead_reckoning)):
+//!    the causal filter online, the navigation computed beforehand over
+//!    the whole mission (smoothed) in batch.
 //! 2. **Nodes** ([`nodes`]): the beams are cut into rotations; each rotation
 //!    the navigation covers becomes a node at its central pose, with `S_k`
 //!    and `I_k` motion-compensated into that pose (eq. 3-4), built once.
@@ -17,7 +22,8 @@
 //!    mutually consistent loops; an incremental solve ([`estimate`]) each
 //!    time the accepted set changes, so later candidates get corrected
 //!    priors and small windows.
-//! 5. **Final optimisation** with false loops switched off
+//! 5. **Final optimisation** ([`SlamEngine::finish`]), after loop
+//!    densification, with false loops switched off
 //!    ([`echofield_backend::optimize_robust`]: the graph grown in node order
 //!    with the loop kernel, loops that disagree switched off, least squares
 //!    over the rest, loops that fit switched back on); switched-off loops
@@ -32,9 +38,9 @@
 //! ([`result::TimeGap`]); a mission without any loop closure gives the
 //! dead-reckoning-plus-sequential trajectory.
 //!
-//! Determinism: node building and sequential matching run in parallel
-//! (rayon) with results collected in order; everything else is sequential,
-//! so a mission and a config always give the same output.
+//! Determinism: rotations are processed one at a time in the order they
+//! complete; parallel work inside a stage (rayon) collects its results in
+//! order, so a mission and a config always give the same output.
 //!
 //! ```no_run
 //! use echofield::slam::{NoProgress, SlamConfig, load_mission, run_mission};
@@ -45,6 +51,7 @@
 //! ```
 
 pub mod config;
+pub mod engine;
 pub mod error;
 pub mod error_budget;
 pub mod estimate;
@@ -55,6 +62,7 @@ pub mod loops;
 pub mod navigation_rate;
 pub mod nodes;
 pub mod odometry_scale;
+pub mod online;
 pub mod outputs;
 pub mod refine;
 pub mod result;
@@ -65,12 +73,13 @@ pub mod uncertainty;
 mod pipeline;
 
 pub use config::{BackendConfig, EvaluationConfig, SequentialConfig, SlamConfig, Window};
+pub use engine::{NodeEvent, SlamEngine};
 pub use error::SlamError;
 pub use loops::LoopConfig;
-pub use pipeline::run_mission;
+pub use pipeline::{replay, run_mission, run_mission_online};
 pub use result::{
-    IntensityReport, LoopRecord, NodeRecord, RecallBin, RecallBudget, RejectReason, Report,
-    RunInfo, SequentialRecord, SlamOutput, StageTimings,
+    IntensityReport, LoopRecord, NodeRecord, OnlineReport, RecallBin, RecallBudget, RejectReason,
+    Report, RunInfo, SequentialRecord, SlamOutput, StageTimings,
 };
 
 use anyhow::{Context, Result, bail};

@@ -257,3 +257,65 @@ fn a_rosbag2_folder_runs_and_its_topics_are_listed() {
         "{wrong:?}"
     );
 }
+
+/// `run --online`: the emitted estimates in `online_tum.txt`, one line per
+/// node, and `report.json` → `online` with the latency per rotation and
+/// the ATE of the emitted estimates (the tank has ground truth).
+#[test]
+fn online_run_writes_the_emitted_estimates_and_the_latency_report() {
+    let dir = tempfile::tempdir().unwrap();
+    let mission = simulated_tank(dir.path(), "4");
+    let out = dir.path().join("online");
+    let run = Command::new(env!("CARGO_BIN_EXE_echofield"))
+        .arg("run")
+        .arg(&mission)
+        .args(["--online", "--allow-suspect", "--output"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(run.status.success(), "{run:?}");
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(stdout.contains("nodes emitted"), "{stdout}");
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let online = &report["online"];
+    let emitted = online["nodes_emitted"].as_u64().unwrap();
+    assert_eq!(emitted, report["nodes"].as_u64().unwrap());
+    let ms = |key: &str| {
+        online[key]
+            .as_f64()
+            .unwrap_or_else(|| panic!("{key}: {online}"))
+    };
+    let (p50, p95, max) = (
+        ms("latency_p50_ms"),
+        ms("latency_p95_ms"),
+        ms("latency_max_ms"),
+    );
+    assert!(0.0 < p50 && p50 <= p95 && p95 <= max, "{online}");
+    let ate = ms("ate_rmse_m");
+    assert!(ate.is_finite() && ate > 0.0, "{online}");
+    let tum = std::fs::read_to_string(out.join("online_tum.txt")).unwrap();
+    let lines: Vec<&str> = tum.lines().filter(|l| !l.starts_with('#')).collect();
+    assert_eq!(lines.len() as u64, emitted);
+    for line in &lines {
+        let fields: Vec<f64> = line
+            .split_whitespace()
+            .map(|f| f.parse().unwrap())
+            .collect();
+        assert_eq!(fields.len(), 8, "{line}");
+    }
+    // The batch run has no online section and no online_tum.txt.
+    let batch = dir.path().join("batch");
+    let run = Command::new(env!("CARGO_BIN_EXE_echofield"))
+        .arg("run")
+        .arg(&mission)
+        .args(["--allow-suspect", "--output"])
+        .arg(&batch)
+        .output()
+        .unwrap();
+    assert!(run.status.success(), "{run:?}");
+    assert!(!batch.join("online_tum.txt").exists());
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(batch.join("report.json")).unwrap()).unwrap();
+    assert!(report.get("online").is_none());
+}

@@ -4,8 +4,8 @@
 
 use super::DeadReckoningConfig;
 use super::model::{self, PSI, ProcessNoise, R, U, V, X, Y, pose_block, symmetric6};
-use super::navigation::{DvlGap, HeadingBias, Navigation, NavigationStep};
-use super::smoother::{self, Prediction};
+use super::navigation::NavigationStep;
+use super::smoother::Prediction;
 use crate::error::FrontendError;
 use crate::screening;
 use crate::sensors::{Attitude, DvlVelocity, Mission, SensorMounting};
@@ -22,48 +22,13 @@ pub(super) fn check_records(
 ) -> Result<(), FrontendError> {
     let mut last_s = f64::NEG_INFINITY;
     for (i, s) in mission.dvl.iter().enumerate() {
-        let record = || format!("DVL sample {i}");
-        check_stamp(s.stamp_s, last_s, record)?;
+        check_dvl(i, s, last_s, config)?;
         last_s = s.stamp_s;
-        if !s.valid {
-            continue;
-        }
-        if !(s.velocity_mps.x.is_finite() && s.velocity_mps.y.is_finite()) {
-            return Err(FrontendError::input(record(), "velocity_mps", "not finite"));
-        }
-        if let Some(why) = screening::implausible_dvl_speed(&s.velocity_mps) {
-            return Err(FrontendError::input(record(), "velocity_mps", why));
-        }
-        if config.use_dvl_covariance
-            && let Some(cov) = &s.covariance
-            && !cov.fixed_view::<2, 2>(0, 0).iter().all(|v| v.is_finite())
-        {
-            return Err(FrontendError::input(record(), "covariance", "not finite"));
-        }
     }
     let mut last_s = f64::NEG_INFINITY;
     for (i, a) in mission.attitude.iter().enumerate() {
-        let record = || format!("attitude sample {i}");
-        check_stamp(a.stamp_s, last_s, record)?;
+        check_attitude(i, a, last_s)?;
         last_s = a.stamp_s;
-        if !a.yaw_rad.is_finite() {
-            return Err(FrontendError::input(record(), "yaw_rad", "not finite"));
-        }
-        if let Some(why) = screening::implausible_angle(a.yaw_rad) {
-            return Err(FrontendError::input(record(), "yaw_rad", why));
-        }
-        if let Some(w) = a.yaw_rate_radps {
-            if !w.is_finite() {
-                return Err(FrontendError::input(
-                    record(),
-                    "yaw_rate_radps",
-                    "not finite",
-                ));
-            }
-            if let Some(why) = screening::implausible_yaw_rate(w) {
-                return Err(FrontendError::input(record(), "yaw_rate_radps", why));
-            }
-        }
     }
     if !mission.dvl.iter().any(|s| s.valid) {
         return Err(FrontendError::insufficient(
@@ -79,6 +44,61 @@ pub(super) fn check_records(
             "dead reckoning",
             "no heading: the mission has no attitude samples",
         ));
+    }
+    Ok(())
+}
+
+/// Checks DVL sample `i` (the `i`-th of its stream) whose predecessor in
+/// the stream has stamp `last_s`: a finite stamp not earlier than `last_s`
+/// and, when valid, a finite, plausible velocity and covariance.
+pub(super) fn check_dvl(
+    i: usize,
+    s: &DvlVelocity,
+    last_s: f64,
+    config: &DeadReckoningConfig,
+) -> Result<(), FrontendError> {
+    let record = || format!("DVL sample {i}");
+    check_stamp(s.stamp_s, last_s, record)?;
+    if !s.valid {
+        return Ok(());
+    }
+    if !(s.velocity_mps.x.is_finite() && s.velocity_mps.y.is_finite()) {
+        return Err(FrontendError::input(record(), "velocity_mps", "not finite"));
+    }
+    if let Some(why) = screening::implausible_dvl_speed(&s.velocity_mps) {
+        return Err(FrontendError::input(record(), "velocity_mps", why));
+    }
+    if config.use_dvl_covariance
+        && let Some(cov) = &s.covariance
+        && !cov.fixed_view::<2, 2>(0, 0).iter().all(|v| v.is_finite())
+    {
+        return Err(FrontendError::input(record(), "covariance", "not finite"));
+    }
+    Ok(())
+}
+
+/// Checks attitude sample `i` like [`check_dvl`]: stamp order, a finite
+/// plausible yaw and yaw rate.
+pub(super) fn check_attitude(i: usize, a: &Attitude, last_s: f64) -> Result<(), FrontendError> {
+    let record = || format!("attitude sample {i}");
+    check_stamp(a.stamp_s, last_s, record)?;
+    if !a.yaw_rad.is_finite() {
+        return Err(FrontendError::input(record(), "yaw_rad", "not finite"));
+    }
+    if let Some(why) = screening::implausible_angle(a.yaw_rad) {
+        return Err(FrontendError::input(record(), "yaw_rad", why));
+    }
+    if let Some(w) = a.yaw_rate_radps {
+        if !w.is_finite() {
+            return Err(FrontendError::input(
+                record(),
+                "yaw_rate_radps",
+                "not finite",
+            ));
+        }
+        if let Some(why) = screening::implausible_yaw_rate(w) {
+            return Err(FrontendError::input(record(), "yaw_rate_radps", why));
+        }
     }
     Ok(())
 }
@@ -112,34 +132,10 @@ const INITIAL_YAW_RATE_STD_RADPS: f64 = 0.1;
 /// `dvl_noise_adaptation_samples`.
 const ADAPTATION_CLIP_CHI2: f64 = 13.82;
 
-enum Event<'a> {
-    Dvl(&'a DvlVelocity),
-    Attitude(&'a Attitude),
-}
-
-/// Valid DVL samples and attitude samples merged in time order.
-fn events(mission: &Mission) -> Vec<(f64, Event<'_>)> {
-    let mut events: Vec<(f64, Event)> = mission
-        .dvl
-        .iter()
-        .filter(|s| s.valid)
-        .map(|s| (s.stamp_s, Event::Dvl(s)))
-        .chain(
-            mission
-                .attitude
-                .iter()
-                .map(|a| (a.stamp_s, Event::Attitude(a))),
-        )
-        .collect();
-    // Stable: at equal stamps DVL comes before attitude.
-    events.sort_by(|a, b| a.0.total_cmp(&b.0));
-    events
-}
-
 /// The filter: state `(x, y, ψ, u, v, r)` and its covariance.
-struct Ekf<'c> {
-    config: &'c DeadReckoningConfig,
-    noise: ProcessNoise,
+pub(super) struct Ekf {
+    config: DeadReckoningConfig,
+    pub(super) noise: ProcessNoise,
     /// `v_dvl = H s`: the DVL velocity in the instrument frame is the
     /// vehicle's body velocity plus the lever-arm term `r × ℓ`, rotated by
     /// `dvl_from_vehicle`.
@@ -149,7 +145,7 @@ struct Ekf<'c> {
     /// `r × ℓ = r (-ℓ_y, ℓ_x)`: the lever arm's velocity per unit yaw rate
     /// (zero without lever-arm compensation).
     lever: Vector2<f64>,
-    stamp_s: f64,
+    pub(super) stamp_s: f64,
     s: Vector6<f64>,
     p: Matrix6<f64>,
     /// Estimated DVL noise variance per axis, (m/s)² (NaN before the first
@@ -158,8 +154,8 @@ struct Ekf<'c> {
     dvl_noise_scale: f64,
 }
 
-impl<'c> Ekf<'c> {
-    fn new(config: &'c DeadReckoningConfig, mounting: &SensorMounting) -> Self {
+impl Ekf {
+    pub(super) fn new(config: &DeadReckoningConfig, mounting: &SensorMounting) -> Self {
         let vehicle_from_dvl = mounting.vehicle_from_dvl.rotation_matrix();
         let arm = mounting.vehicle_from_dvl.translation();
         let lever = if config.lever_arm_compensation {
@@ -172,7 +168,7 @@ impl<'c> Ekf<'c> {
             .copy_from(&Matrix2::identity());
         body.fixed_view_mut::<2, 1>(0, R).copy_from(&lever);
         Self {
-            config,
+            config: config.clone(),
             noise: config.process_noise(),
             h_dvl: vehicle_from_dvl.transpose() * body,
             vehicle_from_dvl,
@@ -183,6 +179,11 @@ impl<'c> Ekf<'c> {
             dvl_noise_var: f64::NAN,
             dvl_noise_scale: 1.0,
         }
+    }
+
+    /// The yaw-rate noise of later attitude updates, rad/s.
+    pub(super) fn set_yaw_rate_noise(&mut self, noise_radps: f64) {
+        self.config.yaw_rate_noise_radps = noise_radps;
     }
 
     /// Measurement covariance of a DVL sample (instrument frame), (m/s)².
@@ -196,8 +197,8 @@ impl<'c> Ekf<'c> {
     /// The state at the first time both a velocity and a heading exist:
     /// origin at the vehicle, heading measured, body velocity solved from
     /// the DVL sample (with the measured yaw rate, or 0 and a wide prior).
-    fn initialise(&mut self, stamp_s: f64, dvl: &DvlVelocity, attitude: &Attitude) {
-        let c = self.config;
+    pub(super) fn initialise(&mut self, stamp_s: f64, dvl: &DvlVelocity, attitude: &Attitude) {
+        let c = &self.config;
         let (r, r_var) = match attitude.yaw_rate_radps {
             Some(w) => (w, c.yaw_rate_noise_radps.powi(2)),
             None => (0.0, INITIAL_YAW_RATE_STD_RADPS.powi(2)),
@@ -228,7 +229,7 @@ impl<'c> Ekf<'c> {
     }
 
     /// Predicts to `stamp_s`; returns the prediction (for the smoother).
-    fn predict(&mut self, stamp_s: f64) -> Prediction {
+    pub(super) fn predict(&mut self, stamp_s: f64) -> Prediction {
         let dt = stamp_s - self.stamp_s;
         let psi_mid = self.s[PSI] + 0.5 * self.s[R] * dt;
         let (mut next, f) = model::predict(&self.s, dt);
@@ -283,7 +284,7 @@ impl<'c> Ekf<'c> {
     /// the sample's nominal noise times the adaptive factor
     /// ([`Self::adapt_dvl_noise`]). Returns `None` for a gated-out sample
     /// (the state is left as predicted).
-    fn update_dvl(&mut self, sample: &DvlVelocity, gate: bool) -> Option<Matrix6<f64>> {
+    pub(super) fn update_dvl(&mut self, sample: &DvlVelocity, gate: bool) -> Option<Matrix6<f64>> {
         let z = Vector2::new(sample.velocity_mps.x, sample.velocity_mps.y);
         let h = self.h_dvl;
         let innovation = z - h * self.s;
@@ -342,21 +343,25 @@ impl<'c> Ekf<'c> {
 
     /// Heading `yaw + heading_offset_rad` (wrapped innovation), then the
     /// yaw rate when the sample has one.
-    fn update_attitude(&mut self, attitude: &Attitude) -> Matrix6<f64> {
-        let c = self.config;
-        let z = wrap_angle(attitude.yaw_rad + c.heading_offset_rad);
+    pub(super) fn update_attitude(&mut self, attitude: &Attitude) -> Matrix6<f64> {
+        let (offset_rad, heading_var, yaw_rate_var) = (
+            self.config.heading_offset_rad,
+            self.config.heading_noise_rad.powi(2),
+            self.config.yaw_rate_noise_radps.powi(2),
+        );
+        let z = wrap_angle(attitude.yaw_rad + offset_rad);
         let mut h = RowVector6::zeros();
         h[PSI] = 1.0;
-        let mut i_kh = self.update1(&h, wrap_angle(z - self.s[PSI]), c.heading_noise_rad.powi(2));
+        let mut i_kh = self.update1(&h, wrap_angle(z - self.s[PSI]), heading_var);
         if let Some(w) = attitude.yaw_rate_radps {
             let mut h = RowVector6::zeros();
             h[R] = 1.0;
-            i_kh = self.update1(&h, w - self.s[R], c.yaw_rate_noise_radps.powi(2)) * i_kh;
+            i_kh = self.update1(&h, w - self.s[R], yaw_rate_var) * i_kh;
         }
         i_kh
     }
 
-    fn step(&self, transition: Matrix6<f64>) -> NavigationStep {
+    pub(super) fn step(&self, transition: Matrix6<f64>) -> NavigationStep {
         NavigationStep {
             stamp_s: self.stamp_s,
             world_from_vehicle: Se2::new(self.s[X], self.s[Y], self.s[PSI]),
@@ -368,94 +373,4 @@ impl<'c> Ekf<'c> {
             state_transition: transition,
         }
     }
-}
-
-/// Runs the filter over checked records (and the smoother when configured).
-pub(super) fn filter(
-    mission: &Mission,
-    config: &DeadReckoningConfig,
-) -> Result<Navigation, FrontendError> {
-    let events = events(mission);
-    let mut ekf = Ekf::new(config, &mission.mounting);
-    let mut steps: Vec<NavigationStep> = Vec::with_capacity(events.len());
-    let mut predictions: Vec<Prediction> = Vec::new();
-    let mut gaps = Vec::new();
-    let mut last_attitude: Option<&Attitude> = None;
-    let mut last_dvl: Option<&DvlVelocity> = None;
-    let mut last_dvl_s = f64::NAN;
-    // Consecutive samples the gate rejected: after
-    // `dvl_gate_max_consecutive` of them the next one is used whatever its
-    // innovation, so a real change of velocity is not locked out.
-    let mut gated_in_row = 0usize;
-    let mut gated = 0usize;
-    for (stamp_s, event) in &events {
-        if steps.is_empty() {
-            // Initialise at the first time both a velocity and a heading exist.
-            match event {
-                Event::Dvl(s) => last_dvl = Some(*s),
-                Event::Attitude(a) => last_attitude = Some(*a),
-            }
-            if let (Some(s), Some(a)) = (last_dvl, last_attitude) {
-                ekf.initialise(*stamp_s, s, a);
-                last_dvl_s = s.stamp_s;
-                steps.push(ekf.step(Matrix6::identity()));
-            }
-            continue;
-        }
-        let prediction = ekf.predict(*stamp_s);
-        let f = prediction.jacobian;
-        if config.smoothing {
-            predictions.push(prediction);
-        }
-        let transition = match event {
-            Event::Dvl(s) => {
-                if s.stamp_s - last_dvl_s > config.max_dvl_gap_s {
-                    record_gap(&mut gaps, last_dvl_s, s.stamp_s);
-                }
-                let gate = gated_in_row < config.dvl_gate_max_consecutive;
-                match ekf.update_dvl(s, gate) {
-                    Some(i_kh) => {
-                        last_dvl_s = s.stamp_s;
-                        gated_in_row = 0;
-                        i_kh * f
-                    }
-                    None => {
-                        gated_in_row += 1;
-                        gated += 1;
-                        f
-                    }
-                }
-            }
-            Event::Attitude(a) => ekf.update_attitude(a) * f,
-        };
-        steps.push(ekf.step(transition));
-    }
-    if ekf.stamp_s - last_dvl_s > config.max_dvl_gap_s {
-        record_gap(&mut gaps, last_dvl_s, ekf.stamp_s);
-    }
-    if gated > 0 {
-        tracing::debug!(gated, "DVL samples rejected by the innovation gate");
-    }
-    let smoothed = config.smoothing && steps.len() > 1;
-    if smoothed {
-        smoother::smooth(&mut steps, &predictions);
-    }
-    let mut navigation =
-        Navigation::from_steps(steps, gaps, config.max_extrapolation_s, ekf.noise, smoothed);
-    navigation.set_dvl_gated(gated);
-    navigation.set_heading_bias(HeadingBias {
-        sigma_rad: config.heading_bias_sigma_rad,
-        time_constant_s: config.heading_bias_time_constant_s,
-    });
-    Ok(navigation)
-}
-
-fn record_gap(gaps: &mut Vec<DvlGap>, start_s: f64, end_s: f64) {
-    tracing::warn!(
-        start_s,
-        end_s,
-        "no valid DVL sample for {:.1} s; predicting with the estimated velocity",
-        end_s - start_s
-    );
-    gaps.push(DvlGap { start_s, end_s });
 }

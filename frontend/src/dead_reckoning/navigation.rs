@@ -131,6 +131,26 @@ impl Navigation {
         }
     }
 
+    /// Appends a filter step (the causal filter's history growing). The
+    /// step must not be earlier than the last one.
+    pub(crate) fn push_step(&mut self, step: NavigationStep) {
+        debug_assert!(step.stamp_s >= self.end_s());
+        self.stamps_s.push(step.stamp_s);
+        self.vectors.push(step.world_from_vehicle.to_vector());
+        self.steps.push(step);
+    }
+
+    /// The steps, giving up the history.
+    pub(crate) fn into_steps(self) -> Vec<NavigationStep> {
+        self.steps
+    }
+
+    /// Replaces the DVL gaps (the causal filter's list, with a gap still
+    /// open at its latest sample).
+    pub(crate) fn set_dvl_gaps(&mut self, gaps: Vec<DvlGap>) {
+        self.dvl_gaps = gaps;
+    }
+
     /// A navigation that follows known poses exactly (zero covariance), e.g.
     /// ground truth for a test or a vehicle known to be still. Velocities for
     /// extrapolation come from finite differences. Errors when the slices

@@ -317,3 +317,70 @@ fn the_beam_period_is_that_of_each_range_setting() {
         vec![0..200, 200..400, 400..600, 750..950]
     );
 }
+
+/// Every rotation of `beams` as [`RotationStream`] returns them, beam by
+/// beam and at the end.
+fn streamed(beams: &[SonarBeam], config: &RotationConfig) -> Vec<Rotation> {
+    let mut stream = RotationStream::new(config).unwrap();
+    let mut rotations: Vec<Rotation> = beams
+        .iter()
+        .filter_map(|b| stream.push(b).unwrap())
+        .collect();
+    rotations.extend(stream.finish());
+    rotations
+}
+
+/// On a head with steady settings the stream's causal thresholds cut where
+/// the batch function does: continuous turns with jitter, a time gap,
+/// sector scans, a reversal, a partial end kept on request.
+#[test]
+fn the_stream_cuts_like_the_batch_function() {
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    let mut jittered = continuous(1200, -1.0, -1.0);
+    for b in &mut jittered {
+        b.stamp_s += rng.random_range(-0.01..0.01);
+    }
+    let mut gap = continuous(800, 0.5, 1.0);
+    for b in &mut gap[350..] {
+        b.stamp_s += 10.6;
+    }
+    let fly_back = beams_from_angles((0..4).flat_map(|_| (0..50).map(|i| i as f64 * STEP_RAD)));
+    let mut reversal: Vec<f64> = (0..300).map(|i| i as f64 * STEP_RAD).collect();
+    reversal.extend((1..=400).map(|i| 299.0 * STEP_RAD - i as f64 * STEP_RAD));
+    let reversal = beams_from_angles(reversal.into_iter().map(wrap_angle));
+    let keep = RotationConfig {
+        keep_partial: true,
+        ..RotationConfig::default()
+    };
+    let cases = [
+        (continuous(1000, 3.0, 1.0), RotationConfig::default()),
+        (jittered, RotationConfig::default()),
+        (gap, RotationConfig::default()),
+        (fly_back, RotationConfig::default()),
+        (reversal, RotationConfig::default()),
+        (continuous(520, 0.0, 1.0), keep),
+    ];
+    for (k, (beams, config)) in cases.iter().enumerate() {
+        let batch = assemble_rotations(beams, config).unwrap();
+        let stream = streamed(beams, config);
+        assert_eq!(ranges(&stream), ranges(&batch), "case {k}");
+        for (s, b) in stream.iter().zip(&batch) {
+            assert_eq!(
+                (s.index, s.kind, s.start_s, s.end_s),
+                (b.index, b.kind, b.start_s, b.end_s)
+            );
+            // The median step of a window, not of the whole stream.
+            assert!((s.coverage_rad - b.coverage_rad).abs() < 1e-6, "case {k}");
+        }
+    }
+}
+
+#[test]
+fn the_stream_names_the_beam_that_goes_back_in_time() {
+    let beams = continuous(10, 0.0, 1.0);
+    let mut stream = RotationStream::new(&RotationConfig::default()).unwrap();
+    stream.push(&beams[5]).unwrap();
+    let err = stream.push(&beams[4]).unwrap_err().to_string();
+    assert!(err.contains("beam 1") && err.contains("stamp_s"), "{err}");
+    assert_eq!(stream.beams(), 1);
+}

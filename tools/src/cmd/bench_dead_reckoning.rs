@@ -40,8 +40,8 @@ fraction of scan points within 0.1 / 0.3 / 1 m of the environment's walls
 mission the trajectory error at the ground-truth stamps (ATE RMSE after
 SE(2) alignment; mean and max after moving the start onto the ground
 truth). --slam adds the distortion left when the motion is compensated
-along the trajectory of a SLAM run, as the pipeline's second pass does
-with `[motion_compensation] refine = true`.";
+along the trajectory of a SLAM run (the dead reckoning bent through its
+optimised node poses).";
 
 #[derive(Debug, clap::Args)]
 #[command(after_help = EXAMPLES)]
@@ -65,8 +65,7 @@ pub struct Args {
     #[arg(long)]
     pub config: Option<PathBuf>,
     /// Also the distortion left when the motion is compensated along the
-    /// trajectory of a SLAM run (default pipeline configuration), as the
-    /// pipeline's second pass does with `[motion_compensation] refine`.
+    /// trajectory of a SLAM run (default pipeline configuration).
     #[arg(long, conflicts_with = "stpere")]
     pub slam: bool,
 }

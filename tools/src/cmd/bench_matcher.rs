@@ -52,8 +52,7 @@ these; with --navigation ground-truth they are the matcher's own.
 rotation with the ground truth instead of dead reckoning: the scans and
 images are then exact and the table measures the matcher alone.
 --navigation slam first runs the SLAM pipeline (default configuration) and
-compensates the motion along its trajectory, as the pipeline's second pass
-does with `[motion_compensation] refine = true`; no ground truth is used
+compensates the motion along its trajectory; no ground truth is used
 for it.";
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -63,8 +62,7 @@ pub enum NavigationSource {
     /// The ground truth: exact scans and images, the matcher alone.
     GroundTruth,
     /// The dead reckoning bent through the node poses of a SLAM run with
-    /// the default pipeline configuration, as the pipeline's second pass
-    /// with `[motion_compensation] refine = true`.
+    /// the default pipeline configuration.
     Slam,
 }
 

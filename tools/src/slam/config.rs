@@ -51,8 +51,6 @@ pub struct SlamConfig {
     pub image: ImageConfig,
     /// The scan matcher (eq. 5-6), shared by sequential and loop matches.
     pub matcher: MatcherConfig,
-    /// Motion compensation of the scans and images.
-    pub motion_compensation: MotionCompensationConfig,
     /// Sequential matches `S_k` vs `I_{k-1}`.
     pub sequential: SequentialConfig,
     /// Loop-closure candidates, checks and mutual consistency.
@@ -74,7 +72,6 @@ impl Default for SlamConfig {
             segmentation: SegmentationConfig::default(),
             image: ImageConfig::default(),
             matcher: MatcherConfig::default(),
-            motion_compensation: MotionCompensationConfig::default(),
             sequential: SequentialConfig::default(),
             loops: LoopConfig::default(),
             backend: BackendConfig::default(),
@@ -136,22 +133,6 @@ impl SlamConfig {
         self.evaluation.validate()?;
         Ok(())
     }
-}
-
-/// How the beams of a rotation are placed in its reference frame.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct MotionCompensationConfig {
-    /// Run the pipeline twice: the second pass rebuilds every scan and
-    /// image with the dead reckoning bent through the first pass's
-    /// optimised node poses ([`super::refine`]), then matches and
-    /// optimises again. Odometry edges and priors still come from the dead
-    /// reckoning. The outputs and the report's counts are the second
-    /// pass's; its stage timings add up both. About doubles the run time.
-    /// Default false: it no longer pays, on the real St Pere replay or on the
-    /// simulated marina (measured, with what is known of why: EXPERIMENTS.md §
-    /// Motion compensation refine).
-    pub refine: bool,
 }
 
 /// Checks that `value` is finite and within `[lo, hi]`.

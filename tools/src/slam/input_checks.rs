@@ -7,24 +7,25 @@
 use super::SlamError;
 use super::config::SlamConfig;
 use super::nodes::NodeData;
-use echofield_frontend::SonarBeam;
-use echofield_frontend::rotation::Rotation;
-use echofield_frontend::sensors::Mission;
 use echofield_frontend::warnings::{Warning, WarningKind};
+use std::ops::Range;
 
 /// The beams that ended in no rotation between two rotations (cut by a
 /// gap, a change of settings or a reversal: see
 /// `echofield_frontend::rotation`), one occurrence per run of such beams.
 /// The partial turns before the first rotation and after the last are
 /// left out: nearly every log starts and ends in the middle of a turn.
-pub(super) fn dropped_rotations(beams: &[SonarBeam], rotations: &[Rotation]) -> Option<Warning> {
-    let runs: Vec<std::ops::Range<usize>> = rotations
+///
+/// `rotations` holds each rotation's beam range and the stamp of the beam
+/// right after it, in order.
+pub(super) fn dropped_rotations(rotations: &[(Range<usize>, f64)]) -> Option<Warning> {
+    let runs: Vec<(Range<usize>, f64)> = rotations
         .windows(2)
-        .filter(|w| w[1].beams.start > w[0].beams.end)
-        .map(|w| w[0].beams.end..w[1].beams.start)
+        .filter(|w| w[1].0.start > w[0].0.end)
+        .map(|w| (w[0].0.end..w[1].0.start, w[0].1))
         .collect();
-    let first = runs.first()?;
-    let dropped: usize = runs.iter().map(|r| r.len()).sum();
+    let (first, first_stamp_s) = runs.first()?;
+    let dropped: usize = runs.iter().map(|r| r.0.len()).sum();
     let message = format!(
         "{dropped} beams in {} runs between rotations formed no complete rotation or sector \
          sweep (cut by a time gap, a change of the head's settings or a reversal) and were \
@@ -32,7 +33,7 @@ pub(super) fn dropped_rotations(beams: &[SonarBeam], rotations: &[Rotation]) -> 
          true keeps partial ones",
         runs.len(),
         first.start,
-        beams[first.start].stamp_s
+        first_stamp_s
     );
     Some(
         Warning::new(WarningKind::RotationsDropped, runs.len(), message)
@@ -44,16 +45,13 @@ pub(super) fn dropped_rotations(beams: &[SonarBeam], rotations: &[Rotation]) -> 
 /// give the dead reckoning alone. The error names the key that blanks the
 /// beams when one does (a blind zone or a maximum range beyond or before
 /// the beams' reach), else the thresholds that rejected every echo.
+/// `reach_m` is the farthest range any beam of `mission` reaches.
 pub(super) fn scans_and_images(
-    mission: &Mission,
+    mission: &str,
+    reach_m: f64,
     nodes: &[NodeData],
     config: &SlamConfig,
 ) -> Result<(), SlamError> {
-    let reach_m = mission
-        .beams
-        .iter()
-        .map(SonarBeam::max_range_m)
-        .fold(0.0, f64::max);
     if !nodes.iter().any(NodeData::has_scan) {
         let seg = &config.segmentation;
         if seg.blind_zone_m >= reach_m {
@@ -66,7 +64,7 @@ pub(super) fn scans_and_images(
             ));
         }
         return Err(SlamError::NoNodes {
-            mission: mission.name.clone(),
+            mission: mission.to_string(),
             reason: format!(
                 "none of the {} rotations gave a scan (beams reaching {reach_m:.1} m; \
                  segmentation.blind_zone_m {} m, max_range_m {:?}, min_intensity {}, \
@@ -92,7 +90,7 @@ pub(super) fn scans_and_images(
             ));
         }
         return Err(SlamError::NoNodes {
-            mission: mission.name.clone(),
+            mission: mission.to_string(),
             reason: format!(
                 "none of the {} rotations gave an acoustic image with an echo (beams reaching \
                  {reach_m:.1} m; image.blind_zone_m {} m, max_range_m {:?}, background_quantile {})",

@@ -10,21 +10,18 @@
 //! node (its dead-reckoning edges keep the chain connected and its image can
 //! still be matched against); its scan is empty.
 //!
-//! Rotations are built in parallel with rayon and collected in rotation
-//! order, so the result does not depend on the thread count.
+//! Rotations are built one at a time, as they complete.
 
 use super::SlamError;
 use super::config::SlamConfig;
-use super::result::SkippedRotation;
 use echofield_frontend::FrontendError;
 use echofield_frontend::dead_reckoning::Navigation;
 use echofield_frontend::image::AcousticImage;
 use echofield_frontend::motion::reference_from_beams;
 use echofield_frontend::rotation::Rotation;
 use echofield_frontend::scan::{Scan, build_scan};
-use echofield_frontend::sensors::Mission;
+use echofield_frontend::sensors::{SensorMounting, SonarBeam};
 use echofield_graph::Se2;
-use rayon::prelude::*;
 use std::ops::Range;
 
 /// Fraction of a scan's points whose range defines its footprint.
@@ -65,50 +62,22 @@ impl NodeData {
     }
 }
 
-/// Builds the nodes of every rotation the navigation covers, placing the
-/// beams with `compensation` (the dead reckoning itself, or the refined
-/// navigation of [`super::refine`]) and the nodes at the dead reckoning's
-/// poses. Returns the nodes in rotation order and the rotations left out.
-pub fn build_nodes(
-    mission: &Mission,
-    rotations: &[Rotation],
-    navigation: &Navigation,
-    compensation: &Navigation,
-    config: &SlamConfig,
-) -> Result<(Vec<NodeData>, Vec<SkippedRotation>), SlamError> {
-    let built: Vec<Result<NodeData, Skip>> = rotations
-        .par_iter()
-        .map(|rotation| build_node(mission, rotation, navigation, compensation, config))
-        .collect();
-    let mut nodes = Vec::with_capacity(built.len());
-    let mut skipped = Vec::new();
-    for (rotation, result) in rotations.iter().zip(built) {
-        match result {
-            Ok(node) => nodes.push(node),
-            Err(Skip::Outside(reason)) => skipped.push(SkippedRotation {
-                rotation_index: rotation.index,
-                start_s: rotation.start_s,
-                end_s: rotation.end_s,
-                reason,
-            }),
-            Err(Skip::Fatal(error)) => return Err(error),
-        }
-    }
-    Ok((nodes, skipped))
-}
-
-enum Skip {
+/// Why a rotation did not become a node.
+pub enum Skip {
     /// Not navigable: skipped and reported.
     Outside(String),
     /// Bad data: the run fails.
     Fatal(SlamError),
 }
 
-fn build_node(
-    mission: &Mission,
+/// The node of `rotation`, whose beams are `beams` (the rotation's own,
+/// in order), placed with `navigation` and the sonar `mounting`.
+/// [`Skip::Outside`] when the navigation does not cover the rotation.
+pub fn build_node(
+    beams: &[SonarBeam],
     rotation: &Rotation,
     navigation: &Navigation,
-    compensation: &Navigation,
+    mounting: &SensorMounting,
     config: &SlamConfig,
 ) -> Result<NodeData, Skip> {
     let stage = || format!("rotation {}", rotation.index);
@@ -117,14 +86,8 @@ fn build_node(
         FrontendError::OutsideNavigation { .. } => Skip::Outside(e.to_string()),
         other => fatal(other),
     };
-    let beams = &mission.beams[rotation.beams.clone()];
-    let frames = reference_from_beams(
-        beams,
-        compensation,
-        &mission.mounting,
-        rotation.reference_stamp_s,
-    )
-    .map_err(skip_outside)?;
+    let frames = reference_from_beams(beams, navigation, mounting, rotation.reference_stamp_s)
+        .map_err(skip_outside)?;
     let dead_reckoning = navigation
         .pose_at(rotation.reference_stamp_s)
         .map_err(skip_outside)?;

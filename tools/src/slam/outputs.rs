@@ -8,6 +8,7 @@
 //! | `trajectory_nav_tum.txt` | the optimised trajectory at the navigation's rate (the dead reckoning corrected by the optimised nodes, [`navigation_rate`](crate::slam::navigation_rate)), TUM |
 //! | `trajectory_nav_kitti.txt`, `trajectory_nav_times.txt` | the same as KITTI odometry rows (3x4 `[R \| t]`, row-major) and their stamps, one per line |
 //! | `ground_truth_tum.txt` | ground truth at the node stamps (its own frame), TUM; only with ground truth |
+//! | `online_tum.txt` | `run --online`: each node's estimate as it was when emitted, TUM |
 //! | `poses.csv` | optimised node poses, `stamp_s,x_m,y_m,theta_rad` |
 //! | `graph.g2o` | the optimised pose graph (`VERTEX_SE2`, `EDGE_SE2`, `EDGE_PRIOR_SE2`, `FIX` last) |
 //! | `loops.csv` | every loop-closure candidate ([`loops_csv`]) |
@@ -74,6 +75,7 @@ pub const FOLDER_FILES: &[&str] = &[
     "trajectory_nav_kitti.txt",
     "trajectory_nav_times.txt",
     "ground_truth_tum.txt",
+    "online_tum.txt",
     "poses.csv",
     "graph.g2o",
     "loops.csv",

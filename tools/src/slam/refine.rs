@@ -1,5 +1,7 @@
-//! Motion compensation from an optimised trajectory
-//! (`[motion_compensation] refine`).
+//! Motion compensation from an optimised trajectory (the matching
+//! tool's `--navigation slam`; the pipeline's two-pass option that used it
+//! made every benchmark worse and was removed, see the README's
+//! accuracy section).
 //!
 //! The first pass builds every rotation's scan and image with the dead
 //! reckoning's beam poses (eq. 3-4). Where the dead reckoning is poor

@@ -339,6 +339,24 @@ pub struct SkippedRotation {
     pub reason: String,
 }
 
+/// What an online run emitted: one estimate per node, each as it was when
+/// its rotation completed (`online_tum.txt`).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct OnlineReport {
+    /// Nodes emitted (one per rotation that became a node).
+    pub nodes_emitted: usize,
+    /// Wall time of the work done per rotation (node building, matching,
+    /// loop closing, incremental solves), ms: median, 95th percentile,
+    /// maximum.
+    pub latency_p50_ms: f64,
+    pub latency_p95_ms: f64,
+    pub latency_max_ms: f64,
+    /// ATE (SE(2)-aligned position RMSE, m) of the emitted estimates
+    /// against ground truth, when the mission has it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ate_rmse_m: Option<f64>,
+}
+
 /// A long interval without nodes or without DVL, bridged by dead reckoning.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct TimeGap {
@@ -584,6 +602,10 @@ pub struct Report {
     pub loop_recall_revisits: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub loop_evaluation: Option<LoopEvaluation>,
+    /// The estimates the engine emitted while the run went on (`echofield
+    /// run --online`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub online: Option<OnlineReport>,
     /// How each evaluation number is defined, in words.
     #[serde(skip_serializing_if = "BTreeMap::is_empty")]
     pub definitions: BTreeMap<String, String>,

@@ -24,8 +24,8 @@
 //!   `max_prior_chi2`. Its covariance is the score surface's plus the
 //!   `min_sigma` floor.
 //!
-//! Sequential matches depend on dead reckoning only, not on the graph, so
-//! they are all computed up front, in parallel.
+//! Sequential matches depend on dead reckoning only, not on the graph;
+//! each is computed when its newer node is built.
 
 use super::SlamError;
 use super::config::{SlamConfig, Window};
@@ -37,7 +37,6 @@ use echofield_frontend::dead_reckoning::Navigation;
 use echofield_frontend::matcher::{MatchOutcome, Search, SearchWindow, match_scan};
 use echofield_graph::Se2;
 use nalgebra::Matrix3;
-use rayon::prelude::*;
 
 /// Floor of the odometry edges' standard deviations: 1 mm, 1 mm, 0.01°.
 pub const ODOMETRY_MIN_SIGMA: Window = Window::new(1e-3, 1e-3, 1.745_329_251_994_33e-4);
@@ -54,20 +53,20 @@ pub fn odometry(
     Ok((motion, with_floor(&cov, &ODOMETRY_MIN_SIGMA)))
 }
 
-/// The sequential match of every node against its predecessor
-/// (`records[i]` is node `i + 1` against node `i`).
-pub fn match_all(
-    nodes: &[NodeData],
+/// The sequential match of node `k` (`node`) against its predecessor
+/// `prev` (the record `k - 1 -> k`), with the odometry of `navigation` as
+/// prior. `None` when sequential matching is off.
+pub fn match_next(
+    prev: &NodeData,
+    node: &NodeData,
+    k: usize,
     navigation: &Navigation,
     config: &SlamConfig,
-) -> Result<Vec<SequentialRecord>, SlamError> {
-    if !config.sequential.enabled || nodes.len() < 2 {
-        return Ok(Vec::new());
+) -> Result<Option<SequentialRecord>, SlamError> {
+    if !config.sequential.enabled {
+        return Ok(None);
     }
-    (1..nodes.len())
-        .into_par_iter()
-        .map(|k| match_one(&nodes[k - 1], &nodes[k], k, navigation, config))
-        .collect()
+    match_one(prev, node, k, navigation, config).map(Some)
 }
 
 fn match_one(

@@ -1,0 +1,329 @@
+//! The SLAM engine: sonar beams, DVL and attitude samples in, one node per
+//! completed rotation out, with the current estimate of every pose.
+//!
+//! [`SlamEngine`] is the one code path of echofield's SLAM: a vehicle's
+//! navigation computer or a live sonar pushes samples as they arrive
+//! (online), and [`crate::slam::run_mission`] replays a recorded mission
+//! through it (batch). Per completed rotation the engine builds the node
+//! (scan and image motion-compensated into its central pose), matches it
+//! against its predecessor, adds the chain edges, looks for loop closures
+//! and runs the incremental solves they trigger; [`SlamEngine::finish`]
+//! adds the end-of-mission steps (loop densification, the robust final
+//! solve, the report).
+//!
+//! # Causality
+//! With [`SlamEngine::new`] the navigation is the forward dead-reckoning
+//! filter over the samples pushed so far, and a node's event depends only
+//! on samples stamped up to the moment it is emitted: a rotation is
+//! processed when the navigation has a sample at or after its last beam,
+//! or when any sample arrives more than `dead_reckoning.max_extrapolation_s`
+//! after it (the navigation then extrapolates or the rotation is skipped).
+//! The yaw-rate check runs over spans of past attitude samples and only
+//! raises the noise of later ones.
+//!
+//! What the batch run adds over online ([`SlamEngine::with_navigation`]):
+//! the navigation computed beforehand over the whole mission (the
+//! Rauch-Tung-Striebel smoother with `dead_reckoning.smoothing`, the
+//! yaw-rate check over every attitude sample), and, before the engine, the
+//! screening of implausible records and the detection of binary
+//! intensities over all beams.
+//!
+//! # Input contract
+//! Each stream in non-decreasing stamp order: a beam or sample earlier than
+//! its predecessor in the same stream is an error naming the record
+//! (`beam i`, `DVL sample i`, `attitude sample i`, counting from 0 per
+//! stream) and field; non-finite or implausible values likewise. A DVL or
+//! attitude sample earlier than a sample of the other stream already
+//! filtered is skipped and counted (a warning in the report). An error
+//! ends the run: what was emitted before it stays valid, the engine is
+//! not to be pushed further.
+//!
+//! ```no_run
+//! use echofield::slam::{SlamConfig, SlamEngine, load_mission};
+//! let mission = load_mission(std::path::Path::new("marina.mcap"))?;
+//! let config = SlamConfig::default();
+//! let mut engine = SlamEngine::new(&config, &mission.name, mission.mounting.clone())?;
+//! for beam in &mission.beams {
+//!     // A real vehicle interleaves push_dvl and push_attitude in time order.
+//!     for event in engine.push_beam(beam.clone())? {
+//!         println!("node {} at {:.1} s: {:?}", event.node_id, event.stamp_s, event.pose);
+//!     }
+//! }
+//! let output = engine.finish(&[])?;
+//! # Ok::<(), anyhow::Error>(())
+//! ```
+
+mod finish;
+mod graph;
+mod navigation;
+
+use super::config::SlamConfig;
+use super::nodes::{Skip, build_node};
+use super::result::{IntensityReport, SkippedRotation, StageTimings};
+use super::{ProgressSink, SlamError};
+use echofield_frontend::dead_reckoning::Navigation;
+use echofield_frontend::intensity::IntensityKind;
+use echofield_frontend::rotation::{Rotation, RotationStream};
+use echofield_frontend::sensors::{Attitude, DvlVelocity, SensorMounting, SonarBeam};
+use echofield_frontend::warnings::Warnings;
+use echofield_graph::Se2;
+use graph::GraphState;
+use navigation::NavigationSource;
+use std::collections::VecDeque;
+use std::ops::Range;
+use std::time::Instant;
+
+/// What the engine emits when a rotation has become a node.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NodeEvent {
+    /// Node id (0, 1, 2, ...): index into [`NodeEvent::poses`].
+    pub node_id: usize,
+    /// Index of the rotation among the rotations the beams formed.
+    pub rotation_index: usize,
+    /// The rotation's central time, s (the node's stamp).
+    pub stamp_s: f64,
+    /// The node's `world_from_vehicle` estimate when emitted (dead-reckoning
+    /// world frame, see [`crate::slam::result`]).
+    pub pose: Se2,
+    /// The current estimate of every node `0..=node_id`, same frame.
+    pub poses: Vec<Se2>,
+    /// Wall time of the work done for this rotation (node building,
+    /// matching, loop closing, incremental solves), s.
+    pub latency_s: f64,
+}
+
+/// The online SLAM engine (see the module doc).
+pub struct SlamEngine<'c> {
+    config: &'c SlamConfig,
+    mission_name: String,
+    mounting: SensorMounting,
+    navigation: NavigationSource,
+    rotations: RotationStream,
+    /// Beams from index `beams_offset` on (those of rotations not yet
+    /// processed and of the current unit).
+    beams: VecDeque<SonarBeam>,
+    beams_offset: usize,
+    /// Completed rotations waiting for the navigation.
+    pending: VecDeque<Rotation>,
+    /// Every rotation's beam range and the stamp of the beam after it.
+    rotation_ranges: Vec<(Range<usize>, f64)>,
+    /// The farthest range any beam reaches, m.
+    reach_m: f64,
+    latest_s: f64,
+    graph: GraphState<'c>,
+    skipped: Vec<SkippedRotation>,
+    latencies_s: Vec<f64>,
+    /// Dead reckoning and node building so far (the other stages are
+    /// timed by [`GraphState`]).
+    timings: StageTimings,
+    input: EngineInput,
+    started: Instant,
+}
+
+/// What the caller knows of the input that the report carries.
+#[derive(Clone, Debug)]
+struct EngineInput {
+    intensity: IntensityReport,
+    warnings: Warnings,
+}
+
+impl<'c> SlamEngine<'c> {
+    /// An online engine for mission `mission_name` with the sonar and DVL
+    /// `mounting` (already resolved from `config.mounting`), navigating with
+    /// the causal filter. Errors: an invalid config.
+    pub fn new(
+        config: &'c SlamConfig,
+        mission_name: &str,
+        mounting: SensorMounting,
+    ) -> Result<Self, SlamError> {
+        config.validate()?;
+        let navigation = NavigationSource::causal(&config.dead_reckoning, &mounting)?;
+        Self::build(config, mission_name, mounting, navigation)
+    }
+
+    /// A batch engine that places every beam with `navigation`, computed
+    /// beforehand (pushed DVL and attitude samples are then ignored).
+    pub fn with_navigation(
+        config: &'c SlamConfig,
+        mission_name: &str,
+        mounting: SensorMounting,
+        navigation: Navigation,
+    ) -> Result<Self, SlamError> {
+        config.validate()?;
+        Self::build(
+            config,
+            mission_name,
+            mounting,
+            NavigationSource::Given(navigation),
+        )
+    }
+
+    fn build(
+        config: &'c SlamConfig,
+        mission_name: &str,
+        mounting: SensorMounting,
+        navigation: NavigationSource,
+    ) -> Result<Self, SlamError> {
+        let rotations = RotationStream::new(&config.rotation)
+            .map_err(|e| SlamError::frontend("rotation assembly", e))?;
+        Ok(Self {
+            config,
+            mission_name: mission_name.to_string(),
+            mounting,
+            navigation,
+            rotations,
+            beams: VecDeque::new(),
+            beams_offset: 0,
+            pending: VecDeque::new(),
+            rotation_ranges: Vec::new(),
+            reach_m: 0.0,
+            latest_s: f64::NEG_INFINITY,
+            graph: GraphState::new(config)?,
+            skipped: Vec::new(),
+            latencies_s: Vec::new(),
+            timings: StageTimings::default(),
+            input: EngineInput {
+                intensity: IntensityReport {
+                    kind: IntensityKind::Graded,
+                    derived: Vec::new(),
+                },
+                warnings: Warnings::new(),
+            },
+            started: Instant::now(),
+        })
+    }
+
+    /// What the caller found about the input before the engine (the
+    /// intensity scale, screening warnings); goes into the report.
+    pub fn set_input_report(&mut self, intensity: IntensityReport, warnings: Warnings) {
+        self.input = EngineInput {
+            intensity,
+            warnings,
+        };
+    }
+
+    /// Nodes built so far.
+    pub fn nodes(&self) -> usize {
+        self.graph.nodes.len()
+    }
+
+    /// The current estimate of every node's `world_from_vehicle`.
+    pub fn poses(&self) -> &[Se2] {
+        self.graph.estimate.poses()
+    }
+
+    /// Takes the next sonar beam; returns the nodes it completes.
+    pub fn push_beam(&mut self, beam: SonarBeam) -> Result<Vec<NodeEvent>, SlamError> {
+        let t = Instant::now();
+        let rotation = self
+            .rotations
+            .push(&beam)
+            .map_err(|e| SlamError::frontend("rotation assembly", e))?;
+        self.reach_m = self.reach_m.max(beam.max_range_m());
+        self.observe(beam.stamp_s);
+        if let Some(rotation) = rotation {
+            self.rotation_ranges
+                .push((rotation.beams.clone(), beam.stamp_s));
+            self.pending.push_back(rotation);
+        }
+        self.beams.push_back(beam);
+        self.timings.scan_image_building_s += t.elapsed().as_secs_f64();
+        self.process_ready(&crate::slam::NoProgress)
+    }
+
+    /// Takes the next DVL sample; returns the nodes it completes.
+    pub fn push_dvl(&mut self, sample: &DvlVelocity) -> Result<Vec<NodeEvent>, SlamError> {
+        let t = Instant::now();
+        self.navigation.push_dvl(sample)?;
+        self.timings.dead_reckoning_s += t.elapsed().as_secs_f64();
+        self.observe(sample.stamp_s);
+        self.process_ready(&crate::slam::NoProgress)
+    }
+
+    /// Takes the next attitude sample; returns the nodes it completes.
+    pub fn push_attitude(&mut self, sample: &Attitude) -> Result<Vec<NodeEvent>, SlamError> {
+        let t = Instant::now();
+        self.navigation.push_attitude(sample)?;
+        self.timings.dead_reckoning_s += t.elapsed().as_secs_f64();
+        self.observe(sample.stamp_s);
+        self.process_ready(&crate::slam::NoProgress)
+    }
+
+    fn observe(&mut self, stamp_s: f64) {
+        if stamp_s.is_finite() {
+            self.latest_s = self.latest_s.max(stamp_s);
+        }
+    }
+
+    /// Processes the pending rotations whose time has come (see the
+    /// module doc), in order.
+    fn process_ready(&mut self, progress: &dyn ProgressSink) -> Result<Vec<NodeEvent>, SlamError> {
+        let mut events = Vec::new();
+        let horizon_s = self.config.dead_reckoning.max_extrapolation_s;
+        while let Some(rotation) = self.pending.front() {
+            let ready = self.navigation.covered_until_s() >= rotation.end_s
+                || self.latest_s > rotation.end_s + horizon_s;
+            if !ready {
+                break;
+            }
+            let Some(rotation) = self.pending.pop_front() else {
+                break;
+            };
+            events.extend(self.process(&rotation)?);
+            progress.node_done(self.graph.nodes.len(), self.graph.closer.accepted.ids.len());
+        }
+        Ok(events)
+    }
+
+    /// Builds the node of `rotation` and adds it to the graph; `None` when
+    /// the navigation does not cover it (skipped and reported).
+    fn process(&mut self, rotation: &Rotation) -> Result<Option<NodeEvent>, SlamError> {
+        let t = Instant::now();
+        let first = rotation.beams.start - self.beams_offset;
+        self.beams.make_contiguous();
+        let beams = &self.beams.as_slices().0[first..first + rotation.beams.len()];
+        let built = match self.navigation.current() {
+            Some(navigation) => {
+                build_node(beams, rotation, navigation, &self.mounting, self.config)
+            }
+            None => Err(Skip::Outside(format!(
+                "no navigation yet at t = {:.3} s (no time with both a valid DVL sample and a heading)",
+                rotation.end_s
+            ))),
+        };
+        self.timings.scan_image_building_s += t.elapsed().as_secs_f64();
+        // The beams up to this rotation's end are not needed any more.
+        let done = rotation.beams.end - self.beams_offset;
+        self.beams.drain(..done);
+        self.beams_offset = rotation.beams.end;
+        let node = match built {
+            Ok(node) => node,
+            Err(Skip::Outside(reason)) => {
+                self.skipped.push(SkippedRotation {
+                    rotation_index: rotation.index,
+                    start_s: rotation.start_s,
+                    end_s: rotation.end_s,
+                    reason,
+                });
+                return Ok(None);
+            }
+            Err(Skip::Fatal(error)) => return Err(error),
+        };
+        let Some(navigation) = self.navigation.current() else {
+            return Ok(None);
+        };
+        self.graph.add(node, navigation)?;
+        let latency_s = t.elapsed().as_secs_f64();
+        self.latencies_s.push(latency_s);
+        let poses = self.graph.estimate.poses().to_vec();
+        let node_id = poses.len() - 1;
+        Ok(Some(NodeEvent {
+            node_id,
+            rotation_index: rotation.index,
+            stamp_s: rotation.reference_stamp_s,
+            pose: poses[node_id],
+            poses,
+            latency_s,
+        }))
+    }
+}

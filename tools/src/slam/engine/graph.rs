@@ -1,0 +1,145 @@
+//! The estimate the engine grows node by node: each new node gets its
+//! odometry and sequential edges, its loop closures, and the incremental
+//! solves they trigger.
+
+use crate::slam::config::SlamConfig;
+use crate::slam::estimate::Estimate;
+use crate::slam::loops::LoopCloser;
+use crate::slam::nodes::NodeData;
+use crate::slam::result::SequentialRecord;
+use crate::slam::{SlamError, sequential};
+use echofield_frontend::dead_reckoning::Navigation;
+use echofield_graph::EdgeKind;
+use std::time::Instant;
+
+/// Nodes, their chain edges, the loop closer and the estimate.
+pub(super) struct GraphState<'c> {
+    pub config: &'c SlamConfig,
+    pub nodes: Vec<NodeData>,
+    /// `sequential[k - 1]` is node `k` against node `k - 1` (empty when
+    /// sequential matching is off).
+    pub sequential: Vec<SequentialRecord>,
+    pub estimate: Estimate,
+    pub closer: LoopCloser<'c>,
+    /// The first failed incremental solve (the estimate stays as it was).
+    pub incremental_error: Option<String>,
+    /// Time spent on sequential matches, s.
+    pub sequential_s: f64,
+    /// Time spent in `close_loops`, s (matches, validation, solves).
+    pub loops_s: f64,
+}
+
+impl<'c> GraphState<'c> {
+    pub fn new(config: &'c SlamConfig) -> Result<Self, SlamError> {
+        Ok(Self {
+            config,
+            nodes: Vec::new(),
+            sequential: Vec::new(),
+            estimate: Estimate::new(&config.backend)?,
+            closer: LoopCloser::new(&config.loops, &config.matcher),
+            incremental_error: None,
+            sequential_s: 0.0,
+            loops_s: 0.0,
+        })
+    }
+
+    /// Adds `node` (the next node, id `nodes.len()`): sequential match
+    /// against its predecessor, chain edges, loop closures. `navigation`
+    /// must cover both node stamps.
+    pub fn add(&mut self, node: NodeData, navigation: &Navigation) -> Result<(), SlamError> {
+        let k = self.nodes.len();
+        if let Some(prev) = self.nodes.last() {
+            let t = Instant::now();
+            let record = sequential::match_next(prev, &node, k, navigation, self.config)?;
+            self.sequential.extend(record);
+            self.sequential_s += t.elapsed().as_secs_f64();
+        }
+        self.nodes.push(node);
+        self.add_chain(k, navigation)?;
+        let t = Instant::now();
+        let incremental = self.config.backend.incremental;
+        let error = &mut self.incremental_error;
+        let mut optimise = |estimate: &mut Estimate| -> Result<(), SlamError> {
+            if incremental {
+                // A failed incremental solve leaves the estimate as it was;
+                // the final batch solve decides.
+                if let Err(e) = estimate.optimise_incremental() {
+                    error.get_or_insert(e.to_string());
+                }
+            }
+            Ok(())
+        };
+        self.closer
+            .close_loops(k, &self.nodes, &mut self.estimate, &mut optimise)?;
+        self.loops_s += t.elapsed().as_secs_f64();
+        Ok(())
+    }
+
+    /// Adds node `k` with its odometry and (accepted) sequential edges; its
+    /// initial pose follows the previous node's current estimate.
+    fn add_chain(&mut self, k: usize, navigation: &Navigation) -> Result<(), SlamError> {
+        let (nodes, config) = (&self.nodes, self.config);
+        let node = &nodes[k];
+        let heading_var = navigation
+            .covariance_at(node.stamp_s)
+            .map_err(|e| SlamError::frontend("dead-reckoning covariance", e))?[(2, 2)];
+        if k == 0 {
+            self.estimate.add_node(node.stamp_s, node.dead_reckoning);
+            let zero = nalgebra::Matrix3::zeros();
+            self.closer
+                .chain
+                .push(node.dead_reckoning, heading_var, &zero);
+            return Ok(());
+        }
+        let (odometry, odometry_cov) = sequential::odometry(navigation, &nodes[k - 1], node)?;
+        // The odometry, not the match: its heading is tied to the compass,
+        // while chained matches let the heading random-walk.
+        let pose = self.estimate.poses()[k - 1].compose(&odometry);
+        self.estimate.add_node(node.stamp_s, pose);
+        let dt_s = node.stamp_s - nodes[k - 1].stamp_s;
+        if let Some(sigma) = config
+            .backend
+            .heading_prior_sigma(&config.dead_reckoning, dt_s)
+        {
+            self.estimate
+                .add_heading_prior(k, node.dead_reckoning, sigma)?;
+        }
+        self.estimate.add_chain_edge(
+            EdgeKind::Odometry,
+            k - 1,
+            k,
+            odometry,
+            &odometry_cov,
+            None,
+        )?;
+        let dead_reckoning = node.dead_reckoning;
+        self.add_sequential_edge(k)?;
+        self.closer
+            .chain
+            .push(dead_reckoning, heading_var, &odometry_cov);
+        Ok(())
+    }
+
+    /// The accepted sequential match of node `k` as a `Sequential` edge.
+    fn add_sequential_edge(&mut self, k: usize) -> Result<(), SlamError> {
+        let Some(record) = self.sequential.get(k - 1).filter(|s| s.accepted) else {
+            return Ok(());
+        };
+        let (Some(z), Some(cov)) = (
+            record.measurement,
+            sequential::edge_covariance(record, self.config),
+        ) else {
+            return Ok(());
+        };
+        let metadata = record.quality.as_ref().map(|q| {
+            serde_json::json!({
+                "mean_intensity": q.mean_intensity,
+                "inside_fraction": q.inside_fraction,
+                "second_peak_ratio": q.second_peak_ratio,
+                "points": q.points,
+            })
+        });
+        self.estimate
+            .add_chain_edge(EdgeKind::Sequential, k - 1, k, z, &cov, metadata)
+    }
+}
