@@ -246,6 +246,14 @@ pub struct LoopConfig {
     /// rejected for how they were searched; with that, at 0.4: St Pere
     /// 0.912-0.924, marina 0.742-0.785, ATE unchanged.)
     pub densify_min_predicted_overlap: f64,
+    /// Loop sparsification ([`cover`](crate::slam::loops::cover)), metres
+    /// of track travelled by dead reckoning: a pair `(j, k)` is neither
+    /// matched nor kept when an accepted loop joins a node within this
+    /// distance along the track of `j` to one within it of `k`. It bounds
+    /// the loops per metre of track, so that slower vehicles (more
+    /// rotations per place) and long missions do not match every pair of
+    /// every revisit. 0 keeps every pair. Default 2.
+    pub cover_spacing_m: f64,
 }
 
 impl Default for LoopConfig {
@@ -279,6 +287,7 @@ impl Default for LoopConfig {
             densify_max_sigma: Window::new(0.35, 0.35, 3.0_f64.to_radians()),
             densify_partial: true,
             densify_min_predicted_overlap: 0.4,
+            cover_spacing_m: 2.0,
         }
     }
 }
@@ -310,6 +319,7 @@ impl LoopConfig {
             ));
         }
         check_range("loops.n_sigma", self.n_sigma, 0.1, 100.0)?;
+        check_range("loops.cover_spacing_m", self.cover_spacing_m, 0.0, 1000.0)?;
         check_range(
             "loops.escalate_window_factor",
             self.escalate_window_factor,
