@@ -18,9 +18,14 @@ Examples:
   # Only the smaller sizes, with a pipeline config
   echofield bench-long --output out/bench-long --speeds 0.4,0.2 --config my.toml
 
+  # Every loop pair kept (no sparsification), as the default `run`
+  echofield bench-long --output out/bench-long --cover-spacing-m 0
+
 The simulated marina is surveyed along the same route at each cruise speed
 ([vehicle] cruise_speed_mps of the simulator), so slower missions see the
-same quays with more rotations. Each mission is written to OUTPUT as
+same quays with more rotations. The runs sparsify loops with
+--cover-spacing-m (loops.cover_spacing_m, default 2 m here, 0 in `run`).
+Each mission is written to OUTPUT as
 marina-<speed>.mcap and run by `echofield run`'s pipeline in a child
 process (outputs in OUTPUT/run-<speed>), whose peak resident memory
 (VmHWM, Linux) and wall time, reading and writing included, are reported
@@ -43,6 +48,10 @@ pub struct Args {
     /// Pipeline configuration (TOML) for the runs.
     #[arg(long)]
     pub config: Option<PathBuf>,
+    /// `loops.cover_spacing_m` of the runs (loop sparsification), metres
+    /// of track; it replaces the config's. 0 keeps every loop pair.
+    #[arg(long, default_value_t = 2.0)]
+    pub cover_spacing_m: f64,
     /// Internal: run this mission in this process and print its peak
     /// memory (the parent's child process).
     #[arg(long, hide = true)]
@@ -63,7 +72,12 @@ struct Row {
 
 pub fn run(args: Args) -> Result<()> {
     if let Some(mission) = &args.child {
-        return run_child(mission, &args.output, args.config.as_deref());
+        return run_child(
+            mission,
+            &args.output,
+            args.config.as_deref(),
+            args.cover_spacing_m,
+        );
     }
     if args.speeds.is_empty() || args.speeds.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
         bail!("--speeds must be positive cruise speeds in m/s");
@@ -128,7 +142,9 @@ fn measure(speed_mps: f64, mission: &Path, args: &Args) -> Result<Row> {
         .arg("--output")
         .arg(&out)
         .arg("--child")
-        .arg(mission);
+        .arg(mission)
+        .arg("--cover-spacing-m")
+        .arg(args.cover_spacing_m.to_string());
     if let Some(config) = &args.config {
         command.arg("--config").arg(config);
     }
@@ -168,8 +184,14 @@ fn measure(speed_mps: f64, mission: &Path, args: &Args) -> Result<Row> {
 
 /// The child: runs the pipeline on `mission`, writes the outputs to
 /// `output` and prints `peak_kb N`, its peak resident memory.
-fn run_child(mission_path: &Path, output: &Path, config: Option<&Path>) -> Result<()> {
-    let config = SlamConfig::from_optional_toml_file(config)?;
+fn run_child(
+    mission_path: &Path,
+    output: &Path,
+    config: Option<&Path>,
+    cover_spacing_m: f64,
+) -> Result<()> {
+    let mut config = SlamConfig::from_optional_toml_file(config)?;
+    config.loops.cover_spacing_m = cover_spacing_m;
     let mission = load_mission(mission_path)?;
     let result = run_mission(&mission, &config, &NoProgress)
         .with_context(|| format!("SLAM on {} failed", mission_path.display()))?;

@@ -910,7 +910,10 @@ mod tests {
 
     #[test]
     fn a_loop_dropped_from_the_clique_no_longer_covers() {
-        let config = LoopConfig::default();
+        let config = LoopConfig {
+            cover_spacing_m: 2.0,
+            ..LoopConfig::default()
+        };
         let matcher = MatcherConfig::default();
         let mut closer = closer_on_a_line(&config, &matcher);
         let chain = closer.chain.clone();
