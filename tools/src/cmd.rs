@@ -1,6 +1,7 @@
 //! One module per subcommand: its clap arguments and its `run`.
 
 pub mod bench_dead_reckoning;
+pub mod bench_long;
 pub mod bench_matcher;
 pub mod bench_robust;
 pub mod calibrate;

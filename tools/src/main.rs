@@ -44,6 +44,8 @@ enum Command {
     BenchRobust(cmd::bench_robust::Args),
     /// Distortion of rotations and drift of dead reckoning against ground truth.
     BenchDeadReckoning(cmd::bench_dead_reckoning::Args),
+    /// Time, memory and accuracy against the number of rotations (long missions).
+    BenchLong(cmd::bench_long::Args),
     /// ATE and RPE of an estimated trajectory against a reference (TUM files).
     Eval(cmd::eval::Args),
     /// Precision-recall of the loop-closure gate from a run's loops.csv.
@@ -82,6 +84,7 @@ fn main() -> ExitCode {
         Command::BenchMatcher(args) => cmd::bench_matcher::run(args),
         Command::BenchRobust(args) => cmd::bench_robust::run(args),
         Command::BenchDeadReckoning(args) => cmd::bench_dead_reckoning::run(args),
+        Command::BenchLong(args) => cmd::bench_long::run(args),
         Command::ErrorBudget(args) => cmd::error_budget::run(args),
         Command::Eval(args) => cmd::eval::run(args),
         Command::EvalLoops(args) => cmd::eval_loops::run(args),

@@ -7,6 +7,11 @@
 //!    estimate places within `j`'s footprint (the range of 90% of `S_j`'s
 //!    returns) is at least `min_predicted_overlap`. At most
 //!    `max_candidates_per_node` of them are taken, largest overlap first.
+//!    Pairs that an accepted loop covers ([`cover`]: both ends within
+//!    `cover_spacing_m` of travel of its ends) are not candidates, and of
+//!    two candidates of `k` whose older nodes lie within that spacing only
+//!    the better-overlapping one is taken: the loops kept per metre of
+//!    track are bounded, whatever the rotations per metre.
 //! 2. **Gating by uncertainty.** The prior `j_from_k` is the current
 //!    estimate; its covariance the relative uncertainty of the two nodes
 //!    (module [`super::uncertainty`]). The search window is `n_sigma`
@@ -45,7 +50,11 @@
 //!    so treating them as independent would count the same error many
 //!    times: a densified loop's covariance is multiplied by the design
 //!    effect of equicorrelated measurements, `1 + ρ·(m_j + m_k − 2)`
-//!    (`densify_correlation` = ρ, `m_x` the accepted loops at node `x`).
+//!    (`densify_correlation` = ρ, `m_x` the accepted loops at node `x`,
+//!    or within `cover_spacing_m` of travel of it). Densification, too,
+//!    skips covered pairs: it matches in rounds the pairs that neither an
+//!    accepted loop nor an earlier pick of the round covers
+//!    ([`COVER_ROUNDS`]).
 //!
 //! The matches of step 3 (a node's candidates, the retried ones, and the
 //! whole densification pass) run in parallel with rayon; their records
@@ -56,6 +65,7 @@
 pub mod checks;
 pub mod config;
 pub mod consistency;
+pub mod cover;
 
 pub use config::LoopConfig;
 
@@ -66,6 +76,7 @@ use super::result::{LoopRecord, RejectReason};
 use super::uncertainty::{DriftModel, invert, mahalanobis2, translation_trace, with_floor};
 use checks::{Candidate, examine};
 use consistency::{Clique, ConsistencyGraph, DeadReckoningChain, LoopMeasurement};
+use cover::LoopCover;
 use echofield_frontend::matcher::{MatcherConfig, SearchWindow};
 use echofield_graph::{EdgeKind, Se2};
 use nalgebra::Matrix3;
@@ -81,6 +92,11 @@ const MAX_RETRY_ROUNDS: usize = 3;
 const CANDIDATE_POOL: usize = 3;
 /// Deferred candidates kept waiting at most; older ones stay `deferred`.
 const MAX_WAITING: usize = 64;
+/// Rounds of densification picks under the cover rule ([`cover`]): each
+/// round matches the pairs that neither a kept loop nor an earlier pick of
+/// the round covers; the next one picks among the pairs only failed picks
+/// covered.
+pub const COVER_ROUNDS: usize = 3;
 
 /// The loop-closing state of a run.
 pub struct LoopCloser<'a> {
@@ -106,6 +122,8 @@ pub struct LoopCloser<'a> {
     pub validation_time_s: f64,
     /// Candidates searched over `max_window` (first contacts).
     pub wide_searches: usize,
+    /// The accepted loops (clique and densified), for the cover rule.
+    cover: LoopCover,
 }
 
 impl<'a> LoopCloser<'a> {
@@ -132,6 +150,7 @@ impl<'a> LoopCloser<'a> {
             matches: 0,
             validation_time_s: 0.0,
             wide_searches: 0,
+            cover: LoopCover::new(config.cover_spacing_m),
         }
     }
 
@@ -183,13 +202,19 @@ impl<'a> LoopCloser<'a> {
         // The best-overlapping candidates that can be searched now, and as
         // many again of those too uncertain for now (deferred).
         let (mut ready, mut waiting) = (Vec::new(), Vec::new());
+        let s = self.chain.distances();
+        // Two candidates of `k` whose older nodes lie within the cover
+        // spacing measure nearly the same pair: the better-overlapping one
+        // is taken.
+        let taken =
+            |list: &Vec<Candidate>, j: usize| list.iter().any(|c| self.cover.near(c.from, j, s));
         for (j, overlap) in overlaps {
             let c = self.candidate(j, k, overlap, path[j].as_ref(), poses);
             if !c.too_uncertain(&self.config.max_window) {
-                if ready.len() < max {
+                if ready.len() < max && !taken(&ready, j) {
                     ready.push(c);
                 }
-            } else if waiting.len() < max {
+            } else if waiting.len() < max && !taken(&waiting, j) {
                 waiting.push(c);
             }
         }
@@ -222,7 +247,9 @@ impl<'a> LoopCloser<'a> {
     /// [`checks`] is accepted when it agrees with the estimate (squared
     /// Mahalanobis distance under its covariance plus the prior's at most
     /// `consistency_max_chi2`), else rejected as `inconsistent`; the final
-    /// solve's robust kernel still judges it. Returns whether loops were
+    /// solve's robust kernel still judges it. Pairs covered by accepted
+    /// loops are skipped, and the rest matched in rounds of pairs that do
+    /// not cover each other ([`cover`]). Returns whether loops were
     /// added.
     pub fn densify(
         &mut self,
@@ -238,12 +265,29 @@ impl<'a> LoopCloser<'a> {
         for pair in self.retried_pairs() {
             self.examined.remove(&pair);
         }
-        let min = &self.config.min_window;
-        // The estimate does not change during the pass: gather the pairs
-        // first, match them all at once, then judge them in order.
+        let mut pool = self.densification_pairs(nodes, estimate);
+        for _ in 0..COVER_ROUNDS {
+            if pool.is_empty() {
+                break;
+            }
+            let (picked, rest) = self.pick_uncovered(pool);
+            self.densify_round(picked, n - 1, nodes)?;
+            pool = rest;
+        }
+        if self.dense.len() == before {
+            return Ok(false);
+        }
+        estimate.set_loops(self.accepted_edges());
+        Ok(true)
+    }
+
+    /// The densification pairs at the current estimate, in pair order
+    /// (`k`, then `j`), with their priors and windows (`min_window`); pairs
+    /// that accepted loops cover ([`cover`]) are left out.
+    fn densification_pairs(&self, nodes: &[NodeData], estimate: &Estimate) -> Vec<Candidate> {
+        let (min, poses) = (&self.config.min_window, estimate.poses());
         let mut candidates = Vec::new();
-        let poses = estimate.poses();
-        for k in sep..n {
+        for k in self.config.min_separation_nodes..nodes.len() {
             if !nodes[k].matchable() {
                 continue;
             }
@@ -260,11 +304,46 @@ impl<'a> LoopCloser<'a> {
                 }
                 c.raw_window = min.search();
                 c.densify = true;
-                self.examined.insert((j, k));
                 candidates.push(c);
             }
         }
-        let records = self.examine_all(&candidates.iter().collect::<Vec<_>>(), n - 1, nodes)?;
+        candidates
+    }
+
+    /// Splits `pool` (in order) into the pairs to match now, which no
+    /// accepted loop and no earlier pick covers, and the pairs only picks
+    /// cover (for the next round); pairs accepted loops cover are dropped.
+    /// Without the cover rule every pair is picked.
+    fn pick_uncovered(&self, pool: Vec<Candidate>) -> (Vec<Candidate>, Vec<Candidate>) {
+        let s = self.chain.distances();
+        let mut picks = LoopCover::new(self.config.cover_spacing_m);
+        let (mut picked, mut rest) = (Vec::new(), Vec::new());
+        for c in pool {
+            if self.cover.covers(c.from, c.to, s) {
+                continue;
+            }
+            if picks.covers(c.from, c.to, s) {
+                rest.push(c);
+            } else {
+                picks.insert(c.from, c.to);
+                picked.push(c);
+            }
+        }
+        (picked, rest)
+    }
+
+    /// Matches the densification pairs `candidates` (in parallel), judges
+    /// them in order and keeps those that agree with the estimate.
+    fn densify_round(
+        &mut self,
+        candidates: Vec<Candidate>,
+        k: usize,
+        nodes: &[NodeData],
+    ) -> Result<(), SlamError> {
+        for c in &candidates {
+            self.examined.insert((c.from, c.to));
+        }
+        let records = self.examine_all(&candidates.iter().collect::<Vec<_>>(), k, nodes)?;
         for (c, mut record) in candidates.into_iter().zip(records) {
             let id = self.records.len();
             if record.rejected_by.is_none()
@@ -275,6 +354,7 @@ impl<'a> LoopCloser<'a> {
                 let chi2 =
                     mahalanobis2(&e, &(covariance + c.prior_covariance)).unwrap_or(f64::INFINITY);
                 if chi2 <= self.config.consistency_max_chi2 {
+                    self.cover.insert(c.from, c.to);
                     self.dense.push(LoopMeasurement {
                         id,
                         from: c.from,
@@ -289,11 +369,7 @@ impl<'a> LoopCloser<'a> {
             self.records.push(record);
             self.candidates.push(c);
         }
-        if self.dense.len() == before {
-            return Ok(false);
-        }
-        estimate.set_loops(self.accepted_edges());
-        Ok(true)
+        Ok(())
     }
 
     /// The pairs the mission pass examined and rejected only for reasons
@@ -333,8 +409,10 @@ impl<'a> LoopCloser<'a> {
         min_overlap: f64,
     ) -> Vec<(usize, f64)> {
         let node = &nodes[k];
+        let s = self.chain.distances();
         (0..=k - self.config.min_separation_nodes)
             .filter(|&j| nodes[j].matchable() && !self.examined.contains(&(j, k)))
+            .filter(|&j| !self.cover.covers(j, k, s))
             .filter_map(|j| {
                 let j_from_k = poses[j].between(&poses[k]);
                 let reach = nodes[j].footprint_m + node.footprint_m;
@@ -527,7 +605,25 @@ impl<'a> LoopCloser<'a> {
         self.inexact_cliques += usize::from(!clique.exact);
         self.accepted = clique;
         self.validation_time_s += start.elapsed().as_secs_f64();
+        self.refresh_cover();
         estimate.set_loops(self.accepted_edges())
+    }
+
+    /// Rebuilds the cover ([`cover`]) from the accepted loops: the clique
+    /// may have dropped loops that covered pairs.
+    fn refresh_cover(&mut self) {
+        if !self.cover.enabled() {
+            return;
+        }
+        self.cover.clear();
+        for &id in &self.accepted.ids {
+            if let Some(m) = self.consistency.measurement(id) {
+                self.cover.insert(m.from, m.to);
+            }
+        }
+        for m in &self.dense {
+            self.cover.insert(m.from, m.to);
+        }
     }
 
     /// The loop edges of the accepted set, with their covariances: the
@@ -540,7 +636,13 @@ impl<'a> LoopCloser<'a> {
             .iter()
             .filter_map(|&id| self.consistency.measurement(id))
             .collect();
-        let inflations = design_effects(&primary, &self.dense, self.config.densify_correlation);
+        let places = Places::new(
+            self.config.cover_spacing_m,
+            self.chain.distances(),
+            primary.iter().copied().chain(&self.dense),
+        );
+        let rho = self.config.densify_correlation;
+        let inflations = self.dense.iter().map(|m| places.design_effect(m, rho));
         primary
             .into_iter()
             .map(|m| (m, 1.0))
@@ -565,6 +667,7 @@ impl<'a> LoopCloser<'a> {
             self.records[id].accepted = false;
             self.records[id].rejected_by = Some(reason);
         }
+        self.refresh_cover();
         estimate.set_loops(self.accepted_edges());
     }
 
@@ -598,20 +701,69 @@ impl<'a> LoopCloser<'a> {
     }
 }
 
-/// The design effect `1 + ρ·(m_j + m_k − 2)` of each of the `dense`
-/// loops, `m_x` the loops (`primary` and `dense`) at node `x`: the factor
-/// by which its covariance grows when the loops at a node are taken as
-/// equicorrelated with correlation `rho`.
-fn design_effects(primary: &[&LoopMeasurement], dense: &[LoopMeasurement], rho: f64) -> Vec<f64> {
-    let mut loops_at: HashMap<usize, usize> = HashMap::new();
-    for m in primary.iter().copied().chain(dense) {
-        *loops_at.entry(m.from).or_default() += 1;
-        *loops_at.entry(m.to).or_default() += 1;
+/// The loops at each place, for the design effect `1 + ρ·(m_j + m_k − 2)`
+/// of a loop `(j, k)`: `m_x` counts the accepted loop ends at node `x`
+/// or, with the cover rule on (`spacing_m > 0`), within `spacing_m` of
+/// travel of it ([`cover`]): loops seen from nearly the same place share
+/// its errors as loops at one node do.
+struct Places<'a> {
+    spacing_m: f64,
+    distance_m: &'a [f64],
+    /// The loop ends: node ids, and their travelled distances, ascending.
+    nodes: HashMap<usize, usize>,
+    ends_m: Vec<f64>,
+}
+
+impl<'a> Places<'a> {
+    fn new<'m>(
+        spacing_m: f64,
+        distance_m: &'a [f64],
+        loops: impl Iterator<Item = &'m LoopMeasurement>,
+    ) -> Self {
+        let mut nodes: HashMap<usize, usize> = HashMap::new();
+        let mut ends_m = Vec::new();
+        for m in loops {
+            for x in [m.from, m.to] {
+                *nodes.entry(x).or_default() += 1;
+                if let Some(&d) = distance_m.get(x) {
+                    ends_m.push(d);
+                }
+            }
+        }
+        ends_m.sort_unstable_by(f64::total_cmp);
+        // A loop end past the known distances (none in a run) makes the
+        // count fall back to ends at the node itself.
+        let spacing_m = if ends_m.len() == nodes.values().sum::<usize>() {
+            spacing_m
+        } else {
+            0.0
+        };
+        Self {
+            spacing_m,
+            distance_m,
+            nodes,
+            ends_m,
+        }
     }
-    dense
-        .iter()
-        .map(|m| 1.0 + rho * (loops_at[&m.from] + loops_at[&m.to] - 2) as f64)
-        .collect()
+
+    /// `m_x`: the loop ends at node `x` or near it.
+    fn loops_at(&self, x: usize) -> usize {
+        match self.distance_m.get(x) {
+            Some(&d) if self.spacing_m > 0.0 => {
+                let lo = self.ends_m.partition_point(|&e| e < d - self.spacing_m);
+                let hi = self.ends_m.partition_point(|&e| e <= d + self.spacing_m);
+                hi - lo
+            }
+            _ => self.nodes.get(&x).copied().unwrap_or(0),
+        }
+    }
+
+    /// `1 + ρ·(m_j + m_k − 2)` of the accepted loop `m` (counted in
+    /// `m_j` and `m_k` itself).
+    fn design_effect(&self, m: &LoopMeasurement, rho: f64) -> f64 {
+        let others = (self.loops_at(m.from) + self.loops_at(m.to)).saturating_sub(2);
+        1.0 + rho * others as f64
+    }
 }
 
 /// What a loop edge carries besides its measurement (g2o drops it).
@@ -685,6 +837,116 @@ mod tests {
         assert_eq!(closer.retried_pairs(), vec![(0, 12), (1, 13), (2, 14)]);
     }
 
+    fn pair(from: usize, to: usize) -> Candidate {
+        let mut c = record_candidate(from, to);
+        c.densify = true;
+        c
+    }
+
+    fn record_candidate(from: usize, to: usize) -> Candidate {
+        Candidate {
+            from,
+            to,
+            prior: Se2::identity(),
+            prior_covariance: Matrix3::identity(),
+            predicted_overlap: 0.8,
+            raw_window: SearchWindow::new(1.0, 1.0, 0.1),
+            wide: false,
+            densify: false,
+        }
+    }
+
+    /// A closer whose dead-reckoning chain has nodes 1 m apart along x.
+    fn closer_on_a_line<'a>(config: &'a LoopConfig, matcher: &'a MatcherConfig) -> LoopCloser<'a> {
+        let mut closer = LoopCloser::new(config, matcher);
+        for i in 0..40 {
+            let cov = Matrix3::identity() * 1e-4;
+            closer.chain.push(Se2::new(i as f64, 0.0, 0.0), 1e-4, &cov);
+        }
+        closer
+    }
+
+    #[test]
+    fn densification_picks_pairs_that_no_kept_loop_or_earlier_pick_covers() {
+        let config = LoopConfig {
+            cover_spacing_m: 2.0,
+            ..LoopConfig::default()
+        };
+        let matcher = MatcherConfig::default();
+        let mut closer = closer_on_a_line(&config, &matcher);
+        // An accepted loop (2, 30): it covers the pairs within 2 m of
+        // travel at both ends.
+        closer.dense.push(measurement(0, 2, 30));
+        closer.refresh_cover();
+        let pool = vec![
+            pair(1, 29),  // covered by (2, 30): dropped
+            pair(4, 32),  // 2 m from both ends: covered, dropped
+            pair(5, 30),  // 3 m from node 2: picked
+            pair(6, 31),  // covered by the pick (5, 30): next round
+            pair(10, 20), // far from everything: picked
+            pair(10, 23), // 3 m from (10, 20) at k: picked
+        ];
+        let (picked, rest) = closer.pick_uncovered(pool);
+        let ends = |v: &[Candidate]| v.iter().map(|c| (c.from, c.to)).collect::<Vec<_>>();
+        assert_eq!(ends(&picked), vec![(5, 30), (10, 20), (10, 23)]);
+        assert_eq!(ends(&rest), vec![(6, 31)]);
+        // Without the rule every pair is picked.
+        let off = LoopConfig {
+            cover_spacing_m: 0.0,
+            ..LoopConfig::default()
+        };
+        let mut closer = closer_on_a_line(&off, &matcher);
+        closer.dense.push(measurement(0, 2, 30));
+        closer.refresh_cover();
+        let (picked, rest) = closer.pick_uncovered(vec![pair(1, 29), pair(2, 30), pair(6, 31)]);
+        assert_eq!(picked.len(), 3);
+        assert!(rest.is_empty());
+    }
+
+    #[test]
+    fn a_loop_dropped_from_the_clique_no_longer_covers() {
+        let config = LoopConfig {
+            cover_spacing_m: 2.0,
+            ..LoopConfig::default()
+        };
+        let matcher = MatcherConfig::default();
+        let mut closer = closer_on_a_line(&config, &matcher);
+        let chain = closer.chain.clone();
+        closer
+            .consistency
+            .add(measurement(7, 3, 25), &chain, config.consistency_max_chi2);
+        closer.accepted = Clique {
+            ids: vec![7],
+            exact: true,
+        };
+        closer.refresh_cover();
+        let s = closer.chain.distances().to_vec();
+        assert!(closer.cover.covers(4, 26, &s));
+        closer.accepted.ids.clear();
+        closer.refresh_cover();
+        assert!(!closer.cover.covers(4, 26, &s));
+    }
+
+    #[test]
+    fn loops_near_a_node_count_in_its_design_effect() {
+        let distance_m: Vec<f64> = (0..40).map(f64::from).collect();
+        let loops = [
+            measurement(0, 2, 30),
+            measurement(1, 3, 31),
+            measurement(2, 10, 20),
+        ];
+        // Spacing 1.5 m: nodes 2 and 3 are one place, so are 30 and 31.
+        let places = Places::new(1.5, &distance_m, loops.iter());
+        assert_eq!(places.loops_at(2), 2);
+        assert_eq!(places.loops_at(31), 2);
+        assert_eq!(places.loops_at(10), 1);
+        assert_eq!(places.design_effect(&loops[0], 1.0), 3.0);
+        assert_eq!(places.design_effect(&loops[2], 1.0), 1.0);
+        // Without the rule only the node's own loops count.
+        let places = Places::new(0.0, &distance_m, loops.iter());
+        assert_eq!(places.design_effect(&loops[0], 1.0), 1.0);
+    }
+
     #[test]
     fn densified_loops_are_inflated_by_the_loops_sharing_their_nodes() {
         let primary = [measurement(0, 0, 20), measurement(1, 1, 20)];
@@ -697,11 +959,14 @@ mod tests {
             // Alone at both ends.
             measurement(4, 5, 30),
         ];
-        assert_eq!(
-            design_effects(&primary, &dense, 0.5),
-            vec![1.5, 1.0 + 0.5 * 3.0, 1.0]
-        );
-        assert_eq!(design_effects(&primary, &dense, 0.0), vec![1.0; 3]);
-        assert!(design_effects(&primary, &[], 1.0).is_empty());
+        let effects = |rho: f64| {
+            let places = Places::new(0.0, &[], primary.iter().copied().chain(&dense));
+            dense
+                .iter()
+                .map(|m| places.design_effect(m, rho))
+                .collect::<Vec<f64>>()
+        };
+        assert_eq!(effects(0.5), vec![1.5, 1.0 + 0.5 * 3.0, 1.0]);
+        assert_eq!(effects(0.0), vec![1.0; 3]);
     }
 }

@@ -181,6 +181,17 @@ pub struct LoopConfig {
     /// accuracy on the St Pere replay (measured: EXPERIMENTS.md § Loop
     /// densification).
     pub densify_min_predicted_overlap: f64,
+    /// Loop sparsification ([`cover`](crate::slam::loops::cover)), metres
+    /// of track travelled by dead reckoning: a pair `(j, k)` is neither
+    /// matched nor kept when an accepted loop joins a node within this
+    /// distance along the track of `j` to one within it of `k`. It bounds
+    /// the loops per metre of track, so that slower vehicles (more
+    /// rotations per place) and long missions do not match every pair of
+    /// every revisit. 0 keeps every pair. Default 0: the recall over node
+    /// pairs that the evaluation reports (and the St Pere replay's tests
+    /// require) counts every overlapping pair; long or slow missions set
+    /// about 2 m (`echofield bench-long` uses `--cover-spacing-m`).
+    pub cover_spacing_m: f64,
 }
 
 impl Default for LoopConfig {
@@ -214,6 +225,7 @@ impl Default for LoopConfig {
             densify_max_sigma: Window::new(0.35, 0.35, 3.0_f64.to_radians()),
             densify_partial: true,
             densify_min_predicted_overlap: 0.4,
+            cover_spacing_m: 0.0,
         }
     }
 }
@@ -245,6 +257,7 @@ impl LoopConfig {
             ));
         }
         check_range("loops.n_sigma", self.n_sigma, 0.1, 100.0)?;
+        check_range("loops.cover_spacing_m", self.cover_spacing_m, 0.0, 1000.0)?;
         check_range(
             "loops.escalate_window_factor",
             self.escalate_window_factor,

@@ -96,6 +96,12 @@ impl DeadReckoningChain {
         self.distance_m[i]
     }
 
+    /// Distance travelled by dead reckoning from node 0 to each node, m
+    /// (non-decreasing).
+    pub fn distances(&self) -> &[f64] {
+        &self.distance_m
+    }
+
     /// `a_from_b` by dead reckoning and its covariance: isotropic
     /// translational variance (the odometry edges' between the nodes), the
     /// heading variance (the smaller of the chained one and the two nodes'

@@ -1,0 +1,225 @@
+//! `echofield bench-long`: how the pipeline scales with the number of
+//! rotations of a mission (issue 36, "long missions").
+
+use anyhow::{Context, Result, bail};
+use echofield::slam::outputs::write_outputs;
+use echofield::slam::{NoProgress, SlamConfig, load_mission, run_mission};
+use echofield_datasets::mcap::write_mission;
+use echofield_datasets::sim::{Scenario, SimConfig, simulate_mission};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+const EXAMPLES: &str = "\
+Examples:
+  # The issue's table: the marina (seed 1) at 0.4, 0.2, 0.1 and 0.05 m/s,
+  # about 179, 351, 699 and 1,397 rotations
+  echofield bench-long --output out/bench-long
+
+  # Only the smaller sizes, with a pipeline config
+  echofield bench-long --output out/bench-long --speeds 0.4,0.2 --config my.toml
+
+  # Every loop pair kept (no sparsification), as the default `run`
+  echofield bench-long --output out/bench-long --cover-spacing-m 0
+
+The simulated marina is surveyed along the same route at each cruise speed
+([vehicle] cruise_speed_mps of the simulator), so slower missions see the
+same quays with more rotations. The runs sparsify loops with
+--cover-spacing-m (loops.cover_spacing_m, default 2 m here, 0 in `run`).
+Each mission is written to OUTPUT as
+marina-<speed>.mcap and run by `echofield run`'s pipeline in a child
+process (outputs in OUTPUT/run-<speed>), whose peak resident memory
+(VmHWM, Linux) and wall time, reading and writing included, are reported
+with the run's loop candidates, accepted loops and ATE (dead reckoning's
+in brackets). The last line compares the largest mission's time with the
+smallest's.";
+
+#[derive(Debug, clap::Args)]
+#[command(after_help = EXAMPLES)]
+pub struct Args {
+    /// Folder for the missions and the runs' outputs.
+    #[arg(long, short)]
+    pub output: PathBuf,
+    /// Cruise speeds of the simulated vehicle, m/s, comma separated.
+    #[arg(long, value_delimiter = ',', default_value = "0.4,0.2,0.1,0.05")]
+    pub speeds: Vec<f64>,
+    /// Seed of the simulation.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Pipeline configuration (TOML) for the runs.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// `loops.cover_spacing_m` of the runs (loop sparsification), metres
+    /// of track; it replaces the config's. 0 keeps every loop pair.
+    #[arg(long, default_value_t = 2.0)]
+    pub cover_spacing_m: f64,
+    /// Internal: run this mission in this process and print its peak
+    /// memory (the parent's child process).
+    #[arg(long, hide = true)]
+    pub child: Option<PathBuf>,
+}
+
+/// One row of the table.
+struct Row {
+    speed_mps: f64,
+    rotations: usize,
+    candidates: usize,
+    accepted: usize,
+    time_s: f64,
+    peak_mb: Option<f64>,
+    ate_m: Option<f64>,
+    ate_dr_m: Option<f64>,
+}
+
+pub fn run(args: Args) -> Result<()> {
+    if let Some(mission) = &args.child {
+        return run_child(
+            mission,
+            &args.output,
+            args.config.as_deref(),
+            args.cover_spacing_m,
+        );
+    }
+    if args.speeds.is_empty() || args.speeds.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
+        bail!("--speeds must be positive cruise speeds in m/s");
+    }
+    std::fs::create_dir_all(&args.output)
+        .with_context(|| format!("cannot create folder {}", args.output.display()))?;
+    let mut rows = Vec::new();
+    println!(
+        "| cruise speed (m/s) | rotations | loop candidates | loops accepted | time (s) | peak memory (MB) | ATE (DR) (m) |"
+    );
+    println!("|---|---|---|---|---|---|---|");
+    for &speed in &args.speeds {
+        let mission = args.output.join(format!("marina-{speed}.mcap"));
+        simulate(speed, args.seed, &mission)?;
+        let row = measure(speed, &mission, &args)?;
+        let show = |v: Option<f64>, digits: usize| {
+            v.map_or_else(|| "n/a".to_string(), |v| format!("{v:.digits$}"))
+        };
+        println!(
+            "| {} | {} | {} | {} | {:.1} | {} | {} ({}) |",
+            row.speed_mps,
+            row.rotations,
+            row.candidates,
+            row.accepted,
+            row.time_s,
+            show(row.peak_mb, 0),
+            show(row.ate_m, 3),
+            show(row.ate_dr_m, 2)
+        );
+        rows.push(row);
+    }
+    if let (Some(first), Some(last)) = (rows.first(), rows.last())
+        && rows.len() > 1
+    {
+        println!(
+            "{} rotations took {:.1} times as long as {}",
+            last.rotations,
+            last.time_s / first.time_s.max(1e-9),
+            first.rotations
+        );
+    }
+    Ok(())
+}
+
+/// The marina at `speed_mps`, written to `path`.
+fn simulate(speed_mps: f64, seed: u64, path: &Path) -> Result<()> {
+    let mut config = SimConfig::default();
+    config.vehicle.cruise_speed_mps = speed_mps;
+    let scenario = Scenario::build("marina", config, None).context("marina scenario")?;
+    let mission = simulate_mission(&scenario, seed).context("simulation failed")?;
+    write_mission(path, &mission)?;
+    Ok(())
+}
+
+/// Runs `mission` in a child process of this program and reads its report.
+fn measure(speed_mps: f64, mission: &Path, args: &Args) -> Result<Row> {
+    let exe = std::env::current_exe().context("cannot find the echofield program")?;
+    let out = args.output.join(format!("run-{speed_mps}"));
+    let mut command = std::process::Command::new(exe);
+    command
+        .arg("bench-long")
+        .arg("--output")
+        .arg(&out)
+        .arg("--child")
+        .arg(mission)
+        .arg("--cover-spacing-m")
+        .arg(args.cover_spacing_m.to_string());
+    if let Some(config) = &args.config {
+        command.arg("--config").arg(config);
+    }
+    let start = Instant::now();
+    let result = command
+        .output()
+        .with_context(|| format!("cannot run {}", mission.display()))?;
+    let time_s = start.elapsed().as_secs_f64();
+    if !result.status.success() {
+        bail!(
+            "the run of {} failed: {}",
+            mission.display(),
+            String::from_utf8_lossy(&result.stderr).trim()
+        );
+    }
+    let peak_mb = String::from_utf8_lossy(&result.stdout)
+        .lines()
+        .find_map(|l| l.strip_prefix("peak_kb ")?.trim().parse::<f64>().ok())
+        .map(|kb| kb / 1024.0);
+    let path = out.join("report.json");
+    let text = std::fs::read_to_string(&path)
+        .with_context(|| format!("cannot read {}", path.display()))?;
+    let report: serde_json::Value =
+        serde_json::from_str(&text).with_context(|| format!("{} is not JSON", path.display()))?;
+    let count = |key: &str| report[key].as_u64().unwrap_or(0) as usize;
+    Ok(Row {
+        speed_mps,
+        rotations: count("rotations"),
+        candidates: count("loop_candidates"),
+        accepted: count("loops_accepted"),
+        time_s,
+        peak_mb,
+        ate_m: report["ate_rmse_m"].as_f64(),
+        ate_dr_m: report["ate_rmse_dead_reckoning_m"].as_f64(),
+    })
+}
+
+/// The child: runs the pipeline on `mission`, writes the outputs to
+/// `output` and prints `peak_kb N`, its peak resident memory.
+fn run_child(
+    mission_path: &Path,
+    output: &Path,
+    config: Option<&Path>,
+    cover_spacing_m: f64,
+) -> Result<()> {
+    let mut config = SlamConfig::from_optional_toml_file(config)?;
+    config.loops.cover_spacing_m = cover_spacing_m;
+    let mission = load_mission(mission_path)?;
+    let result = run_mission(&mission, &config, &NoProgress)
+        .with_context(|| format!("SLAM on {} failed", mission_path.display()))?;
+    write_outputs(output, &result, &mission)?;
+    if let Some(kb) = peak_resident_kb() {
+        println!("peak_kb {kb}");
+    }
+    Ok(())
+}
+
+/// `VmHWM` of this process in kB (Linux); `None` elsewhere.
+fn peak_resident_kb() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    status.lines().find_map(|line| {
+        let value = line.strip_prefix("VmHWM:")?;
+        value.trim().trim_end_matches("kB").trim().parse().ok()
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reads_its_own_peak_memory() {
+        if cfg!(target_os = "linux") {
+            let kb = peak_resident_kb().expect("VmHWM on Linux");
+            assert!(kb > 100, "{kb} kB");
+        }
+    }
+}
