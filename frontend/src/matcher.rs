@@ -299,7 +299,6 @@ fn match_with(
         quality: MatchQuality {
             mean_intensity: mean,
             inside_fraction: inside as f64 / points.len() as f64,
-            second_peak_ratio: None,
             points: points.len(),
             surface_fit_residual: fit.relative_fit_residual,
         },
@@ -308,7 +307,6 @@ fn match_with(
         stats: MatchStats {
             angle_step_rad,
             search_nodes: stats.nodes,
-            refine_iterations: 0,
         },
     })))
 }

@@ -45,11 +45,6 @@ pub struct MatchQuality {
     pub mean_intensity: f64,
     /// Fraction of the points inside the image's extent at `x*`.
     pub inside_fraction: f64,
-    /// Always `None`: the matcher no longer searches a second peak.
-    /// Kept only until the code outside the frontend that reads or builds
-    /// it (`tools/src/slam/loops/checks.rs`, `loops.rs`, `pipeline.rs`)
-    /// drops it.
-    pub second_peak_ratio: Option<f64>,
     /// Scan points used (after thinning).
     pub points: usize,
     /// RMS residual of the quadratic fit of the surface, relative to its
@@ -64,10 +59,6 @@ pub struct MatchStats {
     pub angle_step_rad: f64,
     /// Branch-and-bound nodes evaluated (both searches).
     pub search_nodes: usize,
-    /// Always 0: the matcher has no iterative refinement any more. Kept
-    /// only until the code that builds this struct outside the frontend
-    /// (`tools/src/slam/loops/checks.rs`) drops it; read nowhere.
-    pub refine_iterations: u64,
 }
 
 /// A successful match.

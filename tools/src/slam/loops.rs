@@ -773,7 +773,6 @@ pub fn loop_metadata(record: &LoopRecord) -> Option<serde_json::Value> {
         "score": record.score,
         "mean_intensity": quality.mean_intensity,
         "inside_fraction": quality.inside_fraction,
-        "second_peak_ratio": quality.second_peak_ratio,
         "points": quality.points,
     }))
 }

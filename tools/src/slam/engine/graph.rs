@@ -135,7 +135,6 @@ impl<'c> GraphState<'c> {
             serde_json::json!({
                 "mean_intensity": q.mean_intensity,
                 "inside_fraction": q.inside_fraction,
-                "second_peak_ratio": q.second_peak_ratio,
                 "points": q.points,
             })
         });

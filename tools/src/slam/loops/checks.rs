@@ -336,8 +336,6 @@ fn individual_checks(
     let q = &m.quality;
     if q.mean_intensity < config.min_mean_intensity
         || q.inside_fraction < config.min_inside_fraction
-        || q.second_peak_ratio
-            .is_some_and(|r| r > config.max_second_peak_ratio)
     {
         return Some(RejectReason::Quality);
     }
@@ -395,7 +393,6 @@ mod tests {
             quality: echofield_frontend::matcher::MatchQuality {
                 mean_intensity: 0.6,
                 inside_fraction: 1.0,
-                second_peak_ratio: None,
                 points: 100,
                 surface_fit_residual: 0.05,
             },
@@ -408,7 +405,6 @@ mod tests {
             stats: echofield_frontend::matcher::MatchStats {
                 angle_step_rad: 0.01,
                 search_nodes: 1,
-                refine_iterations: 0,
             },
         }
     }

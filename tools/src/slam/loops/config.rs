@@ -77,11 +77,6 @@ pub struct LoopConfig {
     /// them are right; lowering it trades accuracy for recall (measured:
     /// EXPERIMENTS.md § Loop closures).
     pub min_inside_fraction: f64,
-    /// No effect: the matcher no longer searches a second peak, so
-    /// `MatchQuality::second_peak_ratio` is always `None` and this test
-    /// never rejects. Kept only until it is removed together with the
-    /// checks' reading of that ratio. Default 1.
-    pub max_second_peak_ratio: f64,
     /// Matches whose standard deviation exceeds `[x_m, y_m, theta_rad]` on
     /// any axis, or whose covariance is not positive definite, are
     /// rejected (`covariance`). Default 0.5 m, 0.5 m, 3°.
@@ -209,7 +204,6 @@ impl Default for LoopConfig {
             escalate_min_predicted_overlap: 0.8,
             min_mean_intensity: 0.30,
             min_inside_fraction: 0.75,
-            max_second_peak_ratio: 1.0,
             max_sigma: Window::new(0.5, 0.5, 3.0_f64.to_radians()),
             min_sigma: Window::new(0.05, 0.05, 0.5_f64.to_radians()),
             window_edge_fraction: 0.05,
@@ -288,12 +282,6 @@ impl LoopConfig {
         check_range(
             "loops.min_inside_fraction",
             self.min_inside_fraction,
-            0.0,
-            1.0,
-        )?;
-        check_range(
-            "loops.max_second_peak_ratio",
-            self.max_second_peak_ratio,
             0.0,
             1.0,
         )?;
