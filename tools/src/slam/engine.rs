@@ -58,7 +58,7 @@ mod graph;
 mod navigation;
 
 use super::config::SlamConfig;
-use super::nodes::{Skip, build_node};
+use super::nodes::{NodeData, Skip, build_node};
 use super::result::{IntensityReport, SkippedRotation, StageTimings};
 use super::{ProgressSink, SlamError};
 use echofield_frontend::dead_reckoning::Navigation;
@@ -69,6 +69,7 @@ use echofield_frontend::warnings::Warnings;
 use echofield_graph::Se2;
 use graph::GraphState;
 use navigation::NavigationSource;
+use rayon::prelude::*;
 use std::collections::VecDeque;
 use std::ops::Range;
 use std::time::Instant;
@@ -105,6 +106,10 @@ pub struct SlamEngine<'c> {
     beams_offset: usize,
     /// Completed rotations waiting for the navigation.
     pending: VecDeque<Rotation>,
+    /// Ready rotations processed together: 1 online (each as soon as it
+    /// is ready); in batch, with the whole navigation known, enough to
+    /// build their nodes on every worker thread at once.
+    batch_size: usize,
     /// Every rotation's beam range and the stamp of the beam after it.
     rotation_ranges: Vec<(Range<usize>, f64)>,
     /// The farthest range any beam reaches, m.
@@ -166,6 +171,10 @@ impl<'c> SlamEngine<'c> {
     ) -> Result<Self, SlamError> {
         let rotations = RotationStream::new(&config.rotation)
             .map_err(|e| SlamError::frontend("rotation assembly", e))?;
+        let batch_size = match navigation {
+            NavigationSource::Given(_) => 8 * rayon::current_num_threads().max(1),
+            _ => 1,
+        };
         Ok(Self {
             config,
             mission_name: mission_name.to_string(),
@@ -175,6 +184,7 @@ impl<'c> SlamEngine<'c> {
             beams: VecDeque::new(),
             beams_offset: 0,
             pending: VecDeque::new(),
+            batch_size,
             rotation_ranges: Vec::new(),
             reach_m: 0.0,
             latest_s: f64::NEG_INFINITY,
@@ -256,46 +266,76 @@ impl<'c> SlamEngine<'c> {
     }
 
     /// Processes the pending rotations whose time has come (see the
-    /// module doc), in order.
+    /// module doc), in order; in batch, once [`Self::batch_size`] of them
+    /// are ready (or at the end), their nodes built in parallel.
     fn process_ready(&mut self, progress: &dyn ProgressSink) -> Result<Vec<NodeEvent>, SlamError> {
-        let mut events = Vec::new();
         let horizon_s = self.config.dead_reckoning.max_extrapolation_s;
-        while let Some(rotation) = self.pending.front() {
-            let ready = self.navigation.covered_until_s() >= rotation.end_s
-                || self.latest_s > rotation.end_s + horizon_s;
-            if !ready {
-                break;
-            }
-            let Some(rotation) = self.pending.pop_front() else {
-                break;
-            };
-            events.extend(self.process(&rotation)?);
+        let covered_s = self.navigation.covered_until_s();
+        let ready = self
+            .pending
+            .iter()
+            .take_while(|r| covered_s >= r.end_s || self.latest_s > r.end_s + horizon_s)
+            .count();
+        let finishing = self.latest_s == f64::INFINITY;
+        if ready == 0 || (ready < self.batch_size && !finishing) {
+            return Ok(Vec::new());
+        }
+        let rotations: Vec<Rotation> = self.pending.drain(..ready).collect();
+        let t = Instant::now();
+        let built = self.build_nodes(&rotations);
+        let build_s = t.elapsed().as_secs_f64() / rotations.len() as f64;
+        self.timings.scan_image_building_s += t.elapsed().as_secs_f64();
+        let mut events = Vec::new();
+        for (rotation, node) in rotations.iter().zip(built) {
+            events.extend(self.add(rotation, node, build_s)?);
             progress.node_done(self.graph.nodes.len(), self.graph.closer.accepted.ids.len());
         }
         Ok(events)
     }
 
-    /// Builds the node of `rotation` and adds it to the graph; `None` when
-    /// the navigation does not cover it (skipped and reported).
-    fn process(&mut self, rotation: &Rotation) -> Result<Option<NodeEvent>, SlamError> {
-        let t = Instant::now();
-        let first = rotation.beams.start - self.beams_offset;
+    /// The nodes of `rotations` (consecutive, the oldest pending ones), in
+    /// parallel when there are several; drops their beams.
+    fn build_nodes(&mut self, rotations: &[Rotation]) -> Vec<Result<NodeData, Skip>> {
         self.beams.make_contiguous();
-        let beams = &self.beams.as_slices().0[first..first + rotation.beams.len()];
-        let built = match self.navigation.current() {
-            Some(navigation) => {
-                build_node(beams, rotation, navigation, &self.mounting, self.config)
+        let beams = self.beams.as_slices().0;
+        let offset = self.beams_offset;
+        let build = |rotation: &Rotation| {
+            let first = rotation.beams.start - offset;
+            let beams = &beams[first..first + rotation.beams.len()];
+            match self.navigation.current() {
+                Some(navigation) => {
+                    build_node(beams, rotation, navigation, &self.mounting, self.config)
+                }
+                None => Err(Skip::Outside(format!(
+                    "no navigation yet at t = {:.3} s (no time with both a valid DVL sample and a heading)",
+                    rotation.end_s
+                ))),
             }
-            None => Err(Skip::Outside(format!(
-                "no navigation yet at t = {:.3} s (no time with both a valid DVL sample and a heading)",
-                rotation.end_s
-            ))),
         };
-        self.timings.scan_image_building_s += t.elapsed().as_secs_f64();
-        // The beams up to this rotation's end are not needed any more.
-        let done = rotation.beams.end - self.beams_offset;
-        self.beams.drain(..done);
-        self.beams_offset = rotation.beams.end;
+        let built: Vec<Result<NodeData, Skip>> = if rotations.len() > 1 {
+            rotations.par_iter().map(build).collect()
+        } else {
+            rotations.iter().map(build).collect()
+        };
+        // The beams up to the last rotation's end are not needed any more.
+        if let Some(last) = rotations.last() {
+            let done = last.beams.end - self.beams_offset;
+            self.beams.drain(..done);
+            self.beams_offset = last.beams.end;
+        }
+        built
+    }
+
+    /// Adds the node built for `rotation` (which took `build_s`) to the
+    /// graph; `None` when the navigation did not cover it (skipped and
+    /// reported).
+    fn add(
+        &mut self,
+        rotation: &Rotation,
+        built: Result<NodeData, Skip>,
+        build_s: f64,
+    ) -> Result<Option<NodeEvent>, SlamError> {
+        let t = Instant::now();
         let node = match built {
             Ok(node) => node,
             Err(Skip::Outside(reason)) => {
@@ -313,7 +353,7 @@ impl<'c> SlamEngine<'c> {
             return Ok(None);
         };
         self.graph.add(node, navigation)?;
-        let latency_s = t.elapsed().as_secs_f64();
+        let latency_s = build_s + t.elapsed().as_secs_f64();
         self.latencies_s.push(latency_s);
         let poses = self.graph.estimate.poses().to_vec();
         let node_id = poses.len() - 1;
