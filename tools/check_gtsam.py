@@ -24,9 +24,14 @@ Exit status 1 if any check fails.
 
 import json
 import sys
+from pathlib import Path
 
 import gtsam
 import numpy as np
+
+# g2o's residual, shared with the peer benchmark (tools/peers).
+sys.path.insert(0, str(Path(__file__).resolve().parent / "peers"))
+from gtsam_compare import g2o_chi2  # noqa: E402
 
 
 def trailing_records(path):
@@ -46,25 +51,6 @@ def trailing_records(path):
             elif tokens[0] == "FIX":
                 fixed.extend(int(t) for t in tokens[1:])
     return priors, fixed, counts
-
-
-def g2o_chi2(graph, values):
-    """Sum of e^T Omega e over the factors, e the (x, y, theta) of
-    measured^-1 * predicted (theta wrapped), as g2o and echofield define it."""
-    total = 0.0
-    for i in range(graph.size()):
-        f = graph.at(i)
-        keys = f.keys()
-        if isinstance(f, gtsam.BetweenFactorPose2):
-            measured = f.measured()
-            predicted = values.atPose2(keys[0]).between(values.atPose2(keys[1]))
-        else:
-            measured = f.prior()
-            predicted = values.atPose2(keys[0])
-        d = measured.inverse().compose(predicted)
-        e = np.array([d.x(), d.y(), d.theta()])
-        total += e @ f.noiseModel().information() @ e
-    return total
 
 
 def poses_of(path):

@@ -6,11 +6,11 @@
 # Usage: tools/check_gtsam.sh [GRAPH.g2o]...
 # Without arguments it runs `echofield run` on a simulated tank mission and
 # checks its graph.g2o, plus every out/*/graph.g2o. GTSAM is installed from
-# PyPI into tools/.venv-gtsam (gitignored) on first use.
+# PyPI into tools/peers/.venv (gitignored; the peer benchmark's) on first use.
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 root="$(dirname "$here")"
-venv="$here/.venv-gtsam"
+venv="$here/peers/.venv"
 if [ ! -x "$venv/bin/python" ] || ! "$venv/bin/python" -c "import gtsam" 2>/dev/null; then
   python3 -m venv "$venv"
   "$venv/bin/pip" install --quiet --upgrade pip

@@ -78,8 +78,10 @@ pub fn corrected_trajectory(anchors: &[Anchor], dead_reckoning: &[(f64, Se2)]) -
     out
 }
 
-/// `(1 - s) a + s b` in position, and along the shorter arc in heading.
-fn blend(a: &Se2, b: &Se2, s: f64) -> Se2 {
+/// `(1 - s) a + s b` in position, and along the shorter arc in heading
+/// (`s` in [0, 1] interpolates; the poses should be close for the result to
+/// mean anything).
+pub fn blend(a: &Se2, b: &Se2, s: f64) -> Se2 {
     let d_theta = wrap_angle(b.theta() - a.theta());
     Se2::new(
         a.x() + s * (b.x() - a.x()),

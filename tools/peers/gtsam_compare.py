@@ -64,15 +64,21 @@ def load(path):
 
 def g2o_chi2(graph, values):
     """Sum of e^T Omega e with g2o's error: e = (x, y, wrap(theta)) of
-    Z^-1 (X_i^-1 X_j)."""
+    Z^-1 (X_i^-1 X_j) for a between factor, Z^-1 X_i for a pose prior
+    (g2o's EDGE_PRIOR_SE2); other factors are left out."""
     total = 0.0
     for k in range(graph.size()):
         factor = graph.at(k)
-        if not isinstance(factor, gtsam.BetweenFactorPose2):
+        if isinstance(factor, gtsam.BetweenFactorPose2):
+            i, j = factor.keys()
+            measured = factor.measured()
+            predicted = values.atPose2(i).between(values.atPose2(j))
+        elif isinstance(factor, gtsam.PriorFactorPose2):
+            measured = factor.prior()
+            predicted = values.atPose2(factor.keys()[0])
+        else:
             continue
-        i, j = factor.keys()
-        relative = values.atPose2(i).between(values.atPose2(j))
-        residual = factor.measured().inverse().compose(relative)
+        residual = measured.inverse().compose(predicted)
         theta = math.atan2(math.sin(residual.theta()), math.cos(residual.theta()))
         e = np.array([residual.x(), residual.y(), theta])
         # The noise model's R is the square-root information: Omega = R^T R.

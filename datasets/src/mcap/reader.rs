@@ -110,6 +110,14 @@ pub struct TopicChoice {
 impl TopicChoice {
     /// Records one `ROLE=/name` assignment; errors name what is wrong.
     pub fn assign(&mut self, text: &str) -> Result<(), String> {
+        let (index, topic) = Self::parse_assignment(text)?;
+        self.topics[index] = Some(topic);
+        Ok(())
+    }
+
+    /// One `ROLE=/name` assignment as the role's index in [`ROLES`] and
+    /// the topic; errors name what is wrong.
+    pub fn parse_assignment(text: &str) -> Result<(usize, String), String> {
         let (role, topic) = text
             .split_once('=')
             .ok_or_else(|| format!("`{text}` is not ROLE=/topic"))?;
@@ -121,8 +129,7 @@ impl TopicChoice {
         if topic.is_empty() {
             return Err(format!("`{text}`: the topic is empty"));
         }
-        self.topics[index] = Some(topic.to_string());
-        Ok(())
+        Ok((index, topic.to_string()))
     }
 }
 

@@ -40,13 +40,15 @@ pub fn mcap_files(dir: &Path) -> Result<Vec<PathBuf>, DatasetError> {
         .ok_or_else(|| {
             DatasetError::parse(&path, "document", "rosbag2_bagfile_information", "missing")
         })?;
-    let field = |name: &str| DatasetError::parse(&path, "rosbag2_bagfile_information", name, "");
+    let field = |name: &str, message: &str| {
+        DatasetError::parse(&path, "rosbag2_bagfile_information", name, message)
+    };
     let storage = info["storage_identifier"]
         .as_str()
-        .ok_or_else(|| with_message(field("storage_identifier"), "missing or not a string"))?;
+        .ok_or_else(|| field("storage_identifier", "missing or not a string"))?;
     if storage != "mcap" {
-        return Err(with_message(
-            field("storage_identifier"),
+        return Err(field(
+            "storage_identifier",
             &format!(
                 "`{storage}` storage is not read; convert the recording to MCAP with \
                  `ros2 bag convert -i {} -o out.yaml` (out.yaml: `output_bags: [{{uri: bag_mcap, storage_id: mcap}}]`)",
@@ -58,24 +60,21 @@ pub fn mcap_files(dir: &Path) -> Result<Vec<PathBuf>, DatasetError> {
         && !mode.is_empty()
         && mode != "NONE"
     {
-        return Err(with_message(
-            field("compression_mode"),
+        return Err(field(
+            "compression_mode",
             &format!(
                 "`{mode}` compression of whole files is not read; decompress with `ros2 bag convert`"
             ),
         ));
     }
     let Yaml::Array(files) = &info["relative_file_paths"] else {
-        return Err(with_message(
-            field("relative_file_paths"),
-            "missing or not a list",
-        ));
+        return Err(field("relative_file_paths", "missing or not a list"));
     };
     let mut out = Vec::with_capacity(files.len());
     for (i, file) in files.iter().enumerate() {
-        let name = file.as_str().ok_or_else(|| {
-            with_message(field(&format!("relative_file_paths[{i}]")), "not a string")
-        })?;
+        let name = file
+            .as_str()
+            .ok_or_else(|| field(&format!("relative_file_paths[{i}]"), "not a string"))?;
         let file_path = dir.join(name);
         if !file_path.is_file() {
             return Err(DatasetError::Missing {
@@ -86,26 +85,9 @@ pub fn mcap_files(dir: &Path) -> Result<Vec<PathBuf>, DatasetError> {
         out.push(file_path);
     }
     if out.is_empty() {
-        return Err(with_message(field("relative_file_paths"), "lists no file"));
+        return Err(field("relative_file_paths", "lists no file"));
     }
     Ok(out)
-}
-
-fn with_message(error: DatasetError, message: &str) -> DatasetError {
-    match error {
-        DatasetError::Parse {
-            path,
-            record,
-            field,
-            ..
-        } => DatasetError::Parse {
-            path,
-            record,
-            field,
-            message: message.to_string(),
-        },
-        other => other,
-    }
 }
 
 #[cfg(test)]

@@ -74,7 +74,7 @@ pub struct Args {
     /// ROS 2 input: the topic that feeds a stream, as ROLE=/name (roles:
     /// sonar, dvl, heading, ground_truth); repeat for several. A stream
     /// with one topic of a type echofield reads needs none.
-    #[arg(long = "topic", value_name = "ROLE=/NAME", value_parser = parse_topic)]
+    #[arg(long = "topic", value_name = "ROLE=/NAME", value_parser = TopicChoice::parse_assignment)]
     pub topics: Vec<(usize, String)>,
     /// Pipeline configuration (TOML); defaults for missing keys.
     #[arg(long)]
@@ -108,14 +108,6 @@ pub struct Args {
     /// engine's end-of-mission solve.
     #[arg(long)]
     pub online: bool,
-}
-
-/// `ROLE=/name` of `--topic`: the role's index in [`ROLES`] and the topic.
-fn parse_topic(text: &str) -> Result<(usize, String), String> {
-    let mut choice = TopicChoice::default();
-    choice.assign(text)?;
-    let role = choice.topics.iter().position(Option::is_some).unwrap_or(0);
-    Ok((role, choice.topics[role].take().unwrap_or_default()))
 }
 
 /// What became of each channel of a ROS 2 recording, one line each.

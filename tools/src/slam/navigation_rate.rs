@@ -12,9 +12,9 @@
 use super::{NodeRecord, Report};
 use crate::eval::{Alignment, ate};
 use echofield_frontend::sensors::GroundTruthPose;
-use echofield_graph::corrected::{Anchor, corrected_trajectory};
+use echofield_graph::Se2;
+use echofield_graph::corrected::{Anchor, blend, corrected_trajectory};
 use echofield_graph::io::TrajectoryPose;
-use echofield_graph::{Se2, wrap_angle};
 
 /// The optimised trajectory at the rate of `dead_reckoning`
 /// (`(stamp_s, world_from_vehicle)` in time order), the node poses merged
@@ -74,17 +74,13 @@ fn interpolate(trajectory: &[(f64, Se2)], stamp_s: f64) -> Option<Se2> {
         return Some(p1);
     }
     let (t0, p0) = *trajectory.get(after.checked_sub(1)?)?;
-    let s = (stamp_s - t0) / (t1 - t0);
-    Some(Se2::new(
-        p0.x() + s * (p1.x() - p0.x()),
-        p0.y() + s * (p1.y() - p0.y()),
-        wrap_angle(p0.theta() + s * wrap_angle(p1.theta() - p0.theta())),
-    ))
+    Some(blend(&p0, &p1, (stamp_s - t0) / (t1 - t0)))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use echofield_graph::wrap_angle;
 
     #[test]
     fn interpolates_between_samples_and_not_beyond() {
