@@ -272,24 +272,82 @@ fn mission_mcap_holds_poses_scans_and_images_for_foxglove() {
     assert!(results.beams.is_empty());
     let bytes = std::fs::read(&path).unwrap();
     let mut topics: BTreeMap<String, (String, usize)> = BTreeMap::new();
-    let mut first_image: Option<Value> = None;
+    let mut first: BTreeMap<String, Value> = BTreeMap::new();
     for message in mcap::MessageStream::new(&bytes).unwrap() {
         let message = message.unwrap();
         let schema = message.channel.schema.as_ref().unwrap().name.clone();
-        let entry = topics
-            .entry(message.channel.topic.clone())
-            .or_insert((schema, 0));
+        let topic = message.channel.topic.clone();
+        let entry = topics.entry(topic.clone()).or_insert((schema, 0));
         entry.1 += 1;
-        if message.channel.topic == "/slam/acoustic_image" && first_image.is_none() {
-            first_image = Some(serde_json::from_slice(&message.data).unwrap());
-        }
+        first
+            .entry(topic)
+            .or_insert_with(|| serde_json::from_slice(&message.data).unwrap());
     }
+    let first_image = first.get("/slam/acoustic_image").cloned();
     let nodes = f.output.nodes.len();
     let expect = |topic: &str, schema: &str, count: usize| {
         let (s, n) = topics.get(topic).unwrap_or_else(|| panic!("no {topic}"));
         assert_eq!((s.as_str(), *n), (schema, count), "{topic}");
     };
-    expect("/tf", "foxglove.FrameTransform", nodes);
+    // vehicle -> sonar once, then world -> vehicle per node.
+    expect("/tf", "foxglove.FrameTransform", nodes + 1);
+    let tf = &first["/tf"];
+    assert_eq!(
+        (
+            tf["parent_frame_id"].as_str(),
+            tf["child_frame_id"].as_str()
+        ),
+        (Some("vehicle"), Some("sonar"))
+    );
+    let sonar = f.mission.mounting.vehicle_from_sonar;
+    assert_eq!(tf["translation"]["x"].as_f64(), Some(sonar.x()));
+    assert_eq!(tf["translation"]["y"].as_f64(), Some(sonar.y()));
+    // Loops are lines: two points per loop whose nodes exist; false loops
+    // (red) are drawn last, on top.
+    expect("/slam/loops/accepted", "foxglove.SceneUpdate", 1);
+    expect("/slam/loops/rejected", "foxglove.SceneUpdate", 1);
+    let accepted: Vec<_> = f.output.loops.iter().filter(|l| l.accepted).collect();
+    let line = &first["/slam/loops/accepted"]["entities"][0]["lines"][0];
+    assert_eq!(line["type"], 2, "LINE_LIST");
+    let points = line["points"].as_array().unwrap();
+    assert_eq!(points.len(), 2 * accepted.len());
+    let red: Vec<bool> = line["colors"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["r"].as_f64().unwrap() > 0.8 && c["g"].as_f64().unwrap() < 0.2)
+        .collect();
+    let false_loops = accepted
+        .iter()
+        .filter(|l| l.true_positive == Some(false))
+        .count();
+    assert_eq!(red.iter().filter(|&&r| r).count(), 2 * false_loops);
+    assert!(red.windows(2).all(|w| w[0] <= w[1]), "false loops last");
+    // The mosaic as a grid of the same size as mosaic.png.
+    expect("/slam/mosaic", "foxglove.Grid", 1);
+    let mosaic = &first["/slam/mosaic"];
+    let png = image::open(f.path.join("mosaic.png")).unwrap();
+    assert_eq!(
+        mosaic["column_count"].as_u64(),
+        Some(u64::from(png.width()))
+    );
+    let cells = base64::engine::general_purpose::STANDARD
+        .decode(mosaic["data"].as_str().unwrap())
+        .unwrap();
+    assert_eq!(
+        cells.len() as u64,
+        u64::from(png.width()) * u64::from(png.height())
+    );
+    assert_eq!(mosaic["cell_size"]["x"].as_f64(), Some(0.2));
+    assert!(cells.iter().any(|&c| c > 128), "the mosaic has echoes");
+    // Its corner is half a cell left of the world file's first pixel centre.
+    let pgw = std::fs::read_to_string(f.path.join("mosaic.pgw")).unwrap();
+    let centre_x: f64 = pgw.lines().nth(4).unwrap().parse().unwrap();
+    let corner_x = mosaic["pose"]["position"]["x"].as_f64().unwrap();
+    assert!(
+        (corner_x - (centre_x - 0.1)).abs() < 1e-3,
+        "{corner_x} vs {centre_x}"
+    );
     expect("/slam/pose", "foxglove.PoseInFrame", nodes);
     expect("/slam/trajectory", "foxglove.PosesInFrame", 1);
     expect("/dead_reckoning/trajectory", "foxglove.PosesInFrame", 1);

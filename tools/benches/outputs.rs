@@ -35,9 +35,11 @@ fn outputs(c: &mut Criterion) {
     let loops: Vec<LoopRow> = output.loops.iter().map(LoopRow::from_record).collect();
     let world_from_gt = world_from_ground_truth(&output);
     let path = dir.path().join("results.mcap");
+    let mosaic = mosaic_grid(&output).unwrap();
     group.bench_function("mission_mcap", |b| {
         b.iter(|| {
-            write_results_mcap(&path, &output, &mission.mounting, &loops, world_from_gt).unwrap()
+            let m = &mission.mounting;
+            write_results_mcap(&path, &output, m, &loops, world_from_gt, Some(&mosaic)).unwrap()
         })
     });
     group.finish();

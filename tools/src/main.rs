@@ -127,7 +127,7 @@ fn init_logging(verbose: u8, quiet: bool) {
     use std::io::IsTerminal as _;
     tracing_subscriber::fmt()
         .with_env_filter(filter)
-        .with_writer(std::io::stderr)
+        .with_writer(|| cmd::run::StderrAboveBar)
         .with_ansi(std::io::stderr().is_terminal())
         .init();
 }

@@ -90,13 +90,14 @@ use std::path::Path;
 /// Progress of a run, for a progress bar. Every method has an empty
 /// default; [`NoProgress`] ignores everything.
 pub trait ProgressSink: Sync {
-    /// A stage starts (`"dead reckoning"`, `"building scans and images"`,
-    /// ...).
-    fn stage(&self, _name: &str) {}
-    /// The node-by-node loop starts over `nodes` nodes.
-    fn start_nodes(&self, _nodes: usize) {}
-    /// `done` nodes have been processed, `loops` loops are accepted.
-    fn node_done(&self, _done: usize, _loops: usize) {}
+    /// Stage `index` (1-based) of the run's `total` stages starts
+    /// (`"dead reckoning"`, `"node by node"`, `"final optimisation"`).
+    fn stage(&self, _index: usize, _total: usize, _name: &str) {}
+    /// `done` of the mission's `total` sonar beams have been fed to the
+    /// engine (the count of the node-by-node stage).
+    fn beams(&self, _done: usize, _total: usize) {}
+    /// `nodes` nodes have been emitted; `loops` loops are accepted so far.
+    fn node_done(&self, _nodes: usize, _loops: usize) {}
     /// The run is over (successfully or not).
     fn finish(&self) {}
 }

@@ -9,7 +9,11 @@
 //! Timestamps are `{sec, nsec}` taken from the message's log time
 //! (`stamp_s` rounded to the nanosecond).
 //!
-//! [`read_mission`](super::read_mission) skips these channels.
+//! [`read_mission`](super::read_mission) skips these channels. Line drawings
+//! and rasters for the 3D panel are in [`scene`].
+
+pub mod scene;
+pub use scene::{GRID, GridCells, LineSegment, SCENE_UPDATE};
 
 use super::validate::{self, FieldError};
 use super::writer::MissionWriter;

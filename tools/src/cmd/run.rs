@@ -17,6 +17,7 @@ use echofield_graph::io::write_tum;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::io::IsTerminal;
 use std::path::PathBuf;
+use std::sync::Mutex;
 use std::time::Instant;
 
 const EXAMPLES: &str = "\
@@ -221,10 +222,21 @@ pub fn run(args: Args) -> Result<()> {
     super::check_health(&report.health, &mission, args.allow_suspect)
 }
 
-/// A progress bar over the nodes on stderr; hidden when stderr is not a
-/// terminal, and with `-q`.
+/// The progress of a run on stderr: one line `[stage/stages] name`, with a
+/// bar over the mission's beams during the node-by-node stage. Hidden when
+/// stderr is not a terminal, and with `-q`. While it is drawn, log lines
+/// go above it ([`StderrAboveBar`]).
 pub struct BarProgress {
     bar: ProgressBar,
+}
+
+/// The bar being drawn, for [`StderrAboveBar`].
+static ACTIVE_BAR: Mutex<Option<ProgressBar>> = Mutex::new(None);
+
+fn bar_style(template: &str) -> ProgressStyle {
+    ProgressStyle::with_template(template)
+        .expect("a valid template")
+        .progress_chars("=> ")
 }
 
 impl BarProgress {
@@ -234,11 +246,10 @@ impl BarProgress {
         } else {
             ProgressBar::hidden()
         };
-        bar.set_style(
-            ProgressStyle::with_template("{spinner} {msg:32} [{bar:40}] {pos}/{len} rotations")
-                .expect("a valid template")
-                .progress_chars("=> "),
-        );
+        bar.set_style(bar_style("{spinner} {prefix} {msg}"));
+        if let Ok(mut active) = ACTIVE_BAR.lock() {
+            *active = Some(bar.clone());
+        }
         Self { bar }
     }
 }
@@ -250,24 +261,53 @@ impl Default for BarProgress {
 }
 
 impl ProgressSink for BarProgress {
-    fn stage(&self, name: &str) {
+    fn stage(&self, index: usize, total: usize, name: &str) {
+        self.bar.set_style(bar_style("{spinner} {prefix} {msg}"));
+        self.bar.set_prefix(format!("[{index}/{total}]"));
         self.bar.set_message(name.to_string());
         self.bar.tick();
     }
 
-    fn start_nodes(&self, nodes: usize) {
-        self.bar.set_length(nodes as u64);
-        self.bar.set_position(0);
-        self.bar.set_message("loop closing");
+    fn beams(&self, done: usize, total: usize) {
+        if self.bar.length() != Some(total as u64) {
+            self.bar.set_style(bar_style(
+                "{spinner} {prefix} {msg:36} [{bar:20}] {percent:>3}% of beams",
+            ));
+            self.bar.set_length(total as u64);
+        }
+        self.bar.set_position(done as u64);
     }
 
-    fn node_done(&self, done: usize, loops: usize) {
-        self.bar.set_position(done as u64);
+    fn node_done(&self, nodes: usize, loops: usize) {
         self.bar
-            .set_message(format!("loop closing ({loops} loops)"));
+            .set_message(format!("node by node: {nodes} nodes, {loops} loops"));
     }
 
     fn finish(&self) {
         self.bar.finish_and_clear();
+        if let Ok(mut active) = ACTIVE_BAR.lock() {
+            *active = None;
+        }
+    }
+}
+
+/// `tracing`'s writer for the CLI: stderr, with the active progress bar
+/// hidden while a log line is written and redrawn below it (indicatif's
+/// `suspend`), so that warnings never glue onto the bar. Written here
+/// because `tracing-indicatif` ties bars to tracing spans, which this CLI
+/// does not use; this is all it needs.
+pub struct StderrAboveBar;
+
+impl std::io::Write for StderrAboveBar {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        let bar = ACTIVE_BAR.lock().ok().and_then(|b| b.clone());
+        match bar {
+            Some(bar) => bar.suspend(|| std::io::stderr().write(buf)),
+            None => std::io::stderr().write(buf),
+        }
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        std::io::stderr().flush()
     }
 }

@@ -57,10 +57,10 @@ mod finish;
 mod graph;
 mod navigation;
 
+use super::SlamError;
 use super::config::SlamConfig;
 use super::nodes::{NodeData, Skip, build_node};
 use super::result::{IntensityReport, SkippedRotation, StageTimings};
-use super::{ProgressSink, SlamError};
 use echofield_frontend::dead_reckoning::Navigation;
 use echofield_frontend::intensity::IntensityKind;
 use echofield_frontend::rotation::{Rotation, RotationStream};
@@ -91,6 +91,8 @@ pub struct NodeEvent {
     /// Wall time of the work done for this rotation (node building,
     /// matching, loop closing, incremental solves), s.
     pub latency_s: f64,
+    /// Loop closures accepted so far, this node's included.
+    pub loops_accepted: usize,
 }
 
 /// The online SLAM engine (see the module doc).
@@ -238,7 +240,7 @@ impl<'c> SlamEngine<'c> {
         }
         self.beams.push_back(beam);
         self.timings.scan_image_building_s += t.elapsed().as_secs_f64();
-        self.process_ready(&crate::slam::NoProgress)
+        self.process_ready()
     }
 
     /// Takes the next DVL sample; returns the nodes it completes.
@@ -247,7 +249,7 @@ impl<'c> SlamEngine<'c> {
         self.navigation.push_dvl(sample)?;
         self.timings.dead_reckoning_s += t.elapsed().as_secs_f64();
         self.observe(sample.stamp_s);
-        self.process_ready(&crate::slam::NoProgress)
+        self.process_ready()
     }
 
     /// Takes the next attitude sample; returns the nodes it completes.
@@ -256,7 +258,7 @@ impl<'c> SlamEngine<'c> {
         self.navigation.push_attitude(sample)?;
         self.timings.dead_reckoning_s += t.elapsed().as_secs_f64();
         self.observe(sample.stamp_s);
-        self.process_ready(&crate::slam::NoProgress)
+        self.process_ready()
     }
 
     fn observe(&mut self, stamp_s: f64) {
@@ -268,7 +270,7 @@ impl<'c> SlamEngine<'c> {
     /// Processes the pending rotations whose time has come (see the
     /// module doc), in order; in batch, once [`Self::batch_size`] of them
     /// are ready (or at the end), their nodes built in parallel.
-    fn process_ready(&mut self, progress: &dyn ProgressSink) -> Result<Vec<NodeEvent>, SlamError> {
+    fn process_ready(&mut self) -> Result<Vec<NodeEvent>, SlamError> {
         let horizon_s = self.config.dead_reckoning.max_extrapolation_s;
         let covered_s = self.navigation.covered_until_s();
         let ready = self
@@ -288,7 +290,6 @@ impl<'c> SlamEngine<'c> {
         let mut events = Vec::new();
         for (rotation, node) in rotations.iter().zip(built) {
             events.extend(self.add(rotation, node, build_s)?);
-            progress.node_done(self.graph.nodes.len(), self.graph.closer.accepted.ids.len());
         }
         Ok(events)
     }
@@ -364,6 +365,7 @@ impl<'c> SlamEngine<'c> {
             pose: poses[node_id],
             poses,
             latency_s,
+            loops_accepted: self.graph.closer.accepted.ids.len(),
         }))
     }
 }

@@ -51,6 +51,7 @@ use crate::plots::trajectory::{
 };
 use crate::slam::{NodeRecord, SlamOutput};
 use anyhow::{Context, Result};
+use echofield_frontend::image::Grid;
 use echofield_frontend::sensors::Mission;
 use echofield_graph::Se2;
 use echofield_graph::io::{TrajectoryPose, write_csv, write_g2o, write_kitti, write_tum};
@@ -112,11 +113,13 @@ pub fn write_output_files(dir: &Path, output: &SlamOutput, mission: &Mission) ->
     // another thread when there is one) and renamed into place only after
     // them, which keeps the order of the module doc.
     let mcap_path = dir.join("mission.mcap");
+    // The mosaic goes into `mosaic.png` and `mission.mcap`: built once.
+    let mosaic = timed("mosaic grid", || mosaic_grid(output))?;
     let (others, mcap) = rayon::join(
         || -> Result<()> {
             timed("tables", || write_tables(dir, output, &loops))?;
             timed("plots", || write_plots(dir, output, &loops, world_from_gt))?;
-            timed("mosaic", || write_mosaic(dir, output))
+            timed("mosaic", || write_mosaic(dir, output, &mosaic))
         },
         || {
             timed("mcap", || {
@@ -126,6 +129,7 @@ pub fn write_output_files(dir: &Path, output: &SlamOutput, mission: &Mission) ->
                     &mission.mounting,
                     &loops,
                     world_from_gt,
+                    Some(&mosaic),
                 )
             })
         },
@@ -241,13 +245,12 @@ fn write_plots(
 }
 
 /// `mosaic.png` and its world file `mosaic.pgw`.
-fn write_mosaic(dir: &Path, output: &SlamOutput) -> Result<()> {
-    let grid = mosaic_grid(output)?;
+fn write_mosaic(dir: &Path, output: &SlamOutput, grid: &Grid) -> Result<()> {
     let track = positions(output.nodes.iter().map(|n| n.optimised));
-    let png = mosaic_png(&grid, &track)?;
+    let png = mosaic_png(grid, &track)?;
     write_atomic(&dir.join("mosaic.png"), |w| Ok(w.write_all(&png)?))?;
     write_atomic(&dir.join("mosaic.pgw"), |w| {
-        Ok(w.write_all(world_file(&grid).as_bytes())?)
+        Ok(w.write_all(world_file(grid).as_bytes())?)
     })
 }
 
@@ -344,8 +347,8 @@ fn loop_segments(loops: &[LoopRow], optimised: &[Se2]) -> Vec<LoopSegment> {
 }
 
 /// The mosaic's world grid: every node's `I_k` at its optimised pose.
-pub fn mosaic_grid(output: &SlamOutput) -> Result<echofield_frontend::image::Grid> {
-    let images: Vec<(&echofield_frontend::image::Grid, Se2)> = output
+pub fn mosaic_grid(output: &SlamOutput) -> Result<Grid> {
+    let images: Vec<(&Grid, Se2)> = output
         .nodes
         .iter()
         .zip(&output.images)

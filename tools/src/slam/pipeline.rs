@@ -58,10 +58,12 @@ fn run(
     let (mission, config, intensity, warnings) = prepare(mission, config)?;
     let (mission, config): (&Mission, &SlamConfig) = (&mission, &config);
     let mut dead_reckoning_s = 0.0;
+    // Online runs have no dead-reckoning stage before the engine.
+    let total = if on_event.is_some() { 2 } else { 3 };
     let mut engine = match on_event {
         Some(_) => SlamEngine::new(config, &mission.name, mission.mounting.clone())?,
         None => {
-            progress.stage("dead reckoning");
+            progress.stage(1, total, "dead reckoning");
             let t = Instant::now();
             let navigation = dead_reckoning::run(mission, &config.dead_reckoning)
                 .map_err(|e| SlamError::frontend("dead reckoning", e))?;
@@ -75,14 +77,14 @@ fn run(
         }
     };
     engine.set_input_report(intensity, warnings);
-    progress.stage("building, matching and optimising node by node");
+    progress.stage(total - 1, total, "node by node");
     let mut ignore = |_: NodeEvent| {};
     let on_event: &mut dyn FnMut(NodeEvent) = match on_event {
         Some(f) => f,
         None => &mut ignore,
     };
     replay(mission, &mut engine, progress, on_event)?;
-    progress.stage("final optimisation");
+    progress.stage(total, total, "final optimisation");
     let mut output = engine.finish(&mission.ground_truth)?;
     output.report.timings.dead_reckoning_s += dead_reckoning_s;
     output.report.time_s += dead_reckoning_s;
@@ -100,11 +102,17 @@ pub fn replay(
     let mut navigation = dead_reckoning::merged_records(mission).peekable();
     let mut emit = |events: Vec<NodeEvent>| {
         for event in events {
-            progress.node_done(event.node_id + 1, 0);
+            progress.node_done(event.node_id + 1, event.loops_accepted);
             on_event(event);
         }
     };
-    for beam in &mission.beams {
+    let total = mission.beams.len();
+    for (done, beam) in mission.beams.iter().enumerate() {
+        // A bar redraws at most ~20 times a second anyway: tell it every
+        // 256 beams (about one rotation of a MiniKing).
+        if done % 256 == 0 {
+            progress.beams(done, total);
+        }
         while let Some(record) = navigation.next_if(|r| r.stamp_s() <= beam.stamp_s) {
             emit(push_navigation(engine, record)?);
         }
@@ -113,6 +121,7 @@ pub fn replay(
     for record in navigation {
         emit(push_navigation(engine, record)?);
     }
+    progress.beams(total, total);
     Ok(())
 }
 

@@ -31,7 +31,7 @@ impl SlamEngine<'_> {
             self.pending.push_back(rotation);
         }
         self.latest_s = f64::INFINITY;
-        self.process_ready(&crate::slam::NoProgress)?;
+        self.process_ready()?;
         if self.rotation_ranges.is_empty() {
             let error = FrontendError::insufficient(
                 "rotation assembly",

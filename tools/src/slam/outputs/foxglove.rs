@@ -11,9 +11,10 @@
 //! | `/slam/trajectory` | `foxglove.PosesInFrame` | first node | optimised node poses |
 //! | `/dead_reckoning/trajectory` | `foxglove.PosesInFrame` | first node | dead reckoning at the node stamps |
 //! | `/ground_truth/trajectory` | `foxglove.PosesInFrame` | first node | ground truth at the node stamps (aligned) |
-//! | `/slam/loops/accepted` | `foxglove.PointCloud` | first node | accepted loops as points every 0.25 m along each segment; `intensity` 1 = true, 0 = false, 0.5 = no ground truth |
-//! | `/slam/loops/rejected` | `foxglove.PointCloud` | first node | rejected candidates, same layout |
-//! | `/tf` | `foxglove.FrameTransform` | each node | `world` → `vehicle`, the optimised pose |
+//! | `/slam/loops/accepted` | `foxglove.SceneUpdate` | first node | accepted loops as lines between the optimised node positions: green = true, red = false (against ground truth), blue = no ground truth |
+//! | `/slam/loops/rejected` | `foxglove.SceneUpdate` | first node | rejected candidates as thin lines: grey, orange where the rejected match was in fact correct against ground truth (a missed loop) |
+//! | `/slam/mosaic` | `foxglove.Grid` | first node | the acoustic mosaic of `mosaic.png` (every `I_k` at its optimised pose), field `intensity` 0-255 |
+//! | `/tf` | `foxglove.FrameTransform` | first node, then each node | `vehicle` → `sonar` (the mounting's `vehicle_from_sonar`) once; `world` → `vehicle`, the optimised pose, per node |
 //! | `/slam/pose` | `foxglove.PoseInFrame` | each node | the optimised pose |
 //! | `/slam/scan` | `foxglove.PointCloud` | each node | `S_k` placed at the optimised pose; `intensity` 0-255 |
 //! | `/slam/acoustic_image` | `foxglove.CompressedImage` | each node | `I_k` as a grey PNG in the vehicle frame (x right, y up, one pixel per 2 x 2 cells, max-pooled) |
@@ -26,9 +27,9 @@ use super::loops_csv::LoopRow;
 use crate::plots::encode_png;
 use crate::slam::SlamOutput;
 use anyhow::{Context, Result};
-use echofield_datasets::mcap::foxglove::ScanPoint;
+use echofield_datasets::mcap::foxglove::{GridCells, LineSegment, ScanPoint};
 use echofield_datasets::mcap::{CompletedMcap, MissionWriter};
-use echofield_frontend::image::AcousticImage;
+use echofield_frontend::image::{AcousticImage, Grid};
 use echofield_frontend::sensors::SensorMounting;
 use echofield_graph::Se2;
 use image::ExtendedColorType;
@@ -37,8 +38,7 @@ use std::path::Path;
 
 pub const FRAME_WORLD: &str = "world";
 pub const FRAME_VEHICLE: &str = "vehicle";
-/// Spacing of the points that draw a loop segment, metres.
-const LOOP_POINT_SPACING_M: f64 = 0.25;
+pub const FRAME_SONAR: &str = "sonar";
 
 /// Writes `path` from a run's output. `world_from_ground_truth` maps the
 /// ground-truth frame into the run's world frame.
@@ -48,19 +48,30 @@ pub fn write_results_mcap(
     mounting: &SensorMounting,
     loops: &[LoopRow],
     world_from_ground_truth: Option<Se2>,
+    mosaic: Option<&Grid>,
 ) -> Result<()> {
-    complete_results_mcap(path, output, mounting, loops, world_from_ground_truth)?.persist()?;
+    complete_results_mcap(
+        path,
+        output,
+        mounting,
+        loops,
+        world_from_ground_truth,
+        mosaic,
+    )?
+    .persist()?;
     Ok(())
 }
 
 /// [`write_results_mcap`] up to the last step: the file is complete at a
-/// temporary path, and replaces `path` only when persisted.
+/// temporary path, and replaces `path` only when persisted. `mosaic` is the
+/// world-frame mosaic grid (`None`: no `/slam/mosaic`).
 pub fn complete_results_mcap(
     path: &Path,
     output: &SlamOutput,
     mounting: &SensorMounting,
     loops: &[LoopRow],
     world_from_ground_truth: Option<Se2>,
+    mosaic: Option<&Grid>,
 ) -> Result<CompletedMcap> {
     let Some(first) = output.nodes.first() else {
         anyhow::bail!("the run has no nodes");
@@ -82,13 +93,31 @@ pub fn complete_results_mcap(
         let poses: Vec<Se2> = gt.iter().map(|(_, p)| world_from_gt.compose(p)).collect();
         w.write_poses_in_frame("/ground_truth/trajectory", t0, FRAME_WORLD, &poses)?;
     }
-    for (topic, accepted) in [
-        ("/slam/loops/accepted", true),
-        ("/slam/loops/rejected", false),
+    for (topic, accepted, thickness_px) in [
+        ("/slam/loops/accepted", true, 2.0),
+        ("/slam/loops/rejected", false, 1.0),
     ] {
-        let points = loop_points(loops, accepted, &optimised);
-        w.write_point_cloud(topic, t0, FRAME_WORLD, &Se2::identity(), &points)?;
+        let segments = loop_segments(loops, accepted, &optimised);
+        w.write_scene_lines(topic, t0, FRAME_WORLD, topic, thickness_px, &segments)?;
     }
+    if let Some(grid) = mosaic.filter(|g| g.width() > 0 && g.height() > 0) {
+        let (x0, y0) = grid.origin_m();
+        let cells: Vec<u8> = grid.values().iter().map(|&v| intensity_level(v)).collect();
+        let cells = GridCells {
+            origin: Se2::new(x0, y0, 0.0),
+            column_count: grid.width(),
+            cell_size_m: grid.cell_size_m(),
+            cells: &cells,
+        };
+        w.write_grid("/slam/mosaic", t0, FRAME_WORLD, &cells)?;
+    }
+    w.write_frame_transform(
+        "/tf",
+        t0,
+        FRAME_VEHICLE,
+        FRAME_SONAR,
+        &mounting.vehicle_from_sonar,
+    )?;
 
     // The images are encoded in parallel (with rayon) and written in node
     // order; an error names the first node whose image failed.
@@ -128,32 +157,46 @@ pub fn complete_results_mcap(
     Ok(w.complete()?)
 }
 
-/// Points along the segments between the optimised positions of the loop
-/// candidates' nodes.
-fn loop_points(loops: &[LoopRow], accepted: bool, optimised: &[Se2]) -> Vec<ScanPoint> {
-    let mut points = Vec::new();
-    for l in loops.iter().filter(|l| l.accepted == accepted) {
-        let (Some(a), Some(b)) = (optimised.get(l.from as usize), optimised.get(l.to as usize))
-        else {
-            continue;
-        };
-        let intensity = match l.gt_correct {
-            Some(true) => 1.0,
-            Some(false) => 0.0,
-            None => 0.5,
-        };
-        let length = (b.translation() - a.translation()).norm();
-        let steps = ((length / LOOP_POINT_SPACING_M).ceil() as usize).max(1);
-        for s in 0..=steps {
-            let f = s as f64 / steps as f64;
-            points.push(ScanPoint {
-                x_m: a.x() + f * (b.x() - a.x()),
-                y_m: a.y() + f * (b.y() - a.y()),
-                intensity,
-            });
-        }
-    }
-    points
+/// Colours of loop lines (red, green, blue, alpha).
+const TRUE_LOOP: [f32; 4] = [0.1, 0.8, 0.2, 0.9];
+const FALSE_LOOP: [f32; 4] = [0.9, 0.1, 0.1, 1.0];
+const UNJUDGED_LOOP: [f32; 4] = [0.2, 0.4, 0.9, 0.9];
+const REJECTED: [f32; 4] = [0.6, 0.6, 0.6, 0.5];
+const REJECTED_OVERLAPPING: [f32; 4] = [1.0, 0.6, 0.1, 0.7];
+
+/// The segments between the optimised positions of the loop candidates'
+/// nodes, accepted or rejected ones, coloured by their ground-truth verdict
+/// (see the module doc). False loops come last, so that they are drawn on
+/// top of true ones.
+fn loop_segments(loops: &[LoopRow], accepted: bool, optimised: &[Se2]) -> Vec<LineSegment> {
+    let mut segments: Vec<(bool, LineSegment)> = loops
+        .iter()
+        .filter(|l| l.accepted == accepted)
+        .filter_map(|l| {
+            let a = optimised.get(l.from as usize)?;
+            let b = optimised.get(l.to as usize)?;
+            let rgba = match (accepted, l.gt_correct) {
+                (true, Some(true)) => TRUE_LOOP,
+                (true, Some(false)) => FALSE_LOOP,
+                (true, None) => UNJUDGED_LOOP,
+                (false, Some(true)) => REJECTED_OVERLAPPING,
+                (false, _) => REJECTED,
+            };
+            let segment = LineSegment {
+                from_m: (a.x(), a.y()),
+                to_m: (b.x(), b.y()),
+                rgba,
+            };
+            Some((rgba == FALSE_LOOP, segment))
+        })
+        .collect();
+    segments.sort_by_key(|(on_top, _)| *on_top);
+    segments.into_iter().map(|(_, s)| s).collect()
+}
+
+/// A normalised intensity (0-1, clamped) as an 8-bit level.
+fn intensity_level(v: f32) -> u8 {
+    (v.clamp(0.0, 1.0) * 255.0) as u8
 }
 
 /// `I_k` as an 8-bit grey PNG, x to the right and y up (row 0 is the
@@ -167,7 +210,7 @@ pub fn image_png(image: &AcousticImage, pixels: &mut Vec<u8>) -> Result<Vec<u8>>
     pixels.clear();
     pixels.resize(pw * ph, 0);
     let values = grid.values();
-    let level = |v: f32| (v.clamp(0.0, 1.0) * 255.0) as u8;
+    let level = intensity_level;
     for (py, pair) in values.chunks(2 * w).enumerate() {
         // Pooled row `py` from the bottom is picture row `ph - 1 - py`.
         let dst = &mut pixels[(ph - 1 - py) * pw..(ph - py) * pw];
