@@ -58,11 +58,11 @@ mod graph;
 mod navigation;
 
 use super::config::SlamConfig;
-use super::nodes::{NodeData, Skip, build_node};
 use super::result::{IntensityReport, SkippedRotation, StageTimings};
 use super::{ProgressSink, SlamError};
 use echofield_frontend::dead_reckoning::Navigation;
 use echofield_frontend::intensity::IntensityKind;
+use echofield_frontend::nodes::{NodeData, Skip, build_node};
 use echofield_frontend::rotation::{Rotation, RotationStream};
 use echofield_frontend::sensors::{Attitude, DvlVelocity, SensorMounting, SonarBeam};
 use echofield_frontend::warnings::Warnings;
@@ -303,9 +303,14 @@ impl<'c> SlamEngine<'c> {
             let first = rotation.beams.start - offset;
             let beams = &beams[first..first + rotation.beams.len()];
             match self.navigation.current() {
-                Some(navigation) => {
-                    build_node(beams, rotation, navigation, &self.mounting, self.config)
-                }
+                Some(navigation) => build_node(
+                    beams,
+                    rotation,
+                    navigation,
+                    &self.mounting,
+                    &self.config.segmentation,
+                    &self.config.image,
+                ),
                 None => Err(Skip::Outside(format!(
                     "no navigation yet at t = {:.3} s (no time with both a valid DVL sample and a heading)",
                     rotation.end_s
@@ -347,7 +352,7 @@ impl<'c> SlamEngine<'c> {
                 });
                 return Ok(None);
             }
-            Err(Skip::Fatal(error)) => return Err(error),
+            Err(Skip::Fatal(error)) => return Err(error.into()),
         };
         let Some(navigation) = self.navigation.current() else {
             return Ok(None);
