@@ -71,3 +71,21 @@ impl FrontendError {
         }
     }
 }
+
+/// A frontend failure at a named stage of a run (`"rotation 5"`,
+/// `"loop 3 -> 17"`): what callers that run many stages report.
+#[derive(Debug, Error, Clone, PartialEq)]
+#[error("{stage}: {error}")]
+pub struct StageError {
+    pub stage: String,
+    pub error: FrontendError,
+}
+
+impl StageError {
+    pub fn new(stage: impl Into<String>, error: FrontendError) -> Self {
+        Self {
+            stage: stage.into(),
+            error,
+        }
+    }
+}

@@ -5,14 +5,17 @@
 //! acoustic-image measurement model of the seed paper.
 
 pub mod calibration;
+pub mod config_check;
 pub mod dead_reckoning;
 pub mod error;
 pub mod icp;
 pub mod image;
 pub mod intensity;
+pub mod loops;
 pub mod matcher;
 pub mod motion;
 pub mod mounting;
+pub mod nodes;
 pub mod off_axis;
 pub mod rotation;
 pub mod scan;
@@ -21,8 +24,9 @@ pub mod segmentation;
 pub mod sensors;
 pub mod sharpness;
 pub mod sweep_lag;
+pub mod uncertainty;
 pub mod warnings;
 
-pub use error::FrontendError;
+pub use error::{FrontendError, StageError};
 
 pub use sensors::{Attitude, DvlVelocity, GroundTruthPose, Mission, SensorMounting, SonarBeam};

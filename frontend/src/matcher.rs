@@ -35,6 +35,7 @@ pub mod config;
 pub mod covariance;
 pub mod outcome;
 pub mod search;
+pub mod symmetric;
 
 pub use config::{MatcherConfig, SearchWindow};
 pub use outcome::{MatchOutcome, MatchQuality, MatchResult, MatchStats, NoMatchReason};

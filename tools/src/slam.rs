@@ -60,17 +60,21 @@ pub mod health;
 mod input_checks;
 pub mod loops;
 pub mod navigation_rate;
-pub mod nodes;
+pub mod node_record;
 pub mod odometry_scale;
 pub mod online;
 pub mod outputs;
 pub mod refine;
 pub mod result;
 pub mod sequential;
-pub mod symmetric;
-pub mod uncertainty;
 
 mod pipeline;
+
+// The frontend modules that lived here before the loop-closure machinery
+// moved to `echofield_frontend` (issue 36), under their old paths for the
+// work in flight; new code names them in the frontend.
+pub use echofield_frontend::matcher::symmetric;
+pub use echofield_frontend::{nodes, uncertainty};
 
 pub use config::{BackendConfig, EvaluationConfig, SequentialConfig, SlamConfig, Window};
 pub use engine::{NodeEvent, SlamEngine};

@@ -70,17 +70,41 @@ impl MatcherConfig {
     }
 }
 
-/// Half-widths of the searched window around the prior.
+/// Three per-axis values in the frame of the reference node: the
+/// half-widths of a searched window around the prior, or standard
+/// deviations (`[loops] max_sigma`). The one window type of echofield: the
+/// matcher searches it and the config sections spell it (unknown keys are
+/// refused).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct SearchWindow {
+    /// Along the x axis of the reference node's frame, metres.
     pub x_m: f64,
+    /// Along its y axis, metres.
     pub y_m: f64,
-    /// At most π (a whole turn).
+    /// In heading, radians; at most π (a whole turn).
     pub theta_rad: f64,
 }
 
 impl SearchWindow {
-    pub fn new(x_m: f64, y_m: f64, theta_rad: f64) -> Self {
+    /// The standard deviations of `covariance` (x m, y m, θ rad) are
+    /// within these values on every axis.
+    pub fn bounds_sigma(&self, covariance: &Matrix3<f64>) -> bool {
+        covariance[(0, 0)].sqrt() <= self.x_m
+            && covariance[(1, 1)].sqrt() <= self.y_m
+            && covariance[(2, 2)].sqrt() <= self.theta_rad
+    }
+
+    /// `(key, value)` per axis, in TOML order.
+    pub fn axes(&self) -> [(&'static str, f64); 3] {
+        [
+            ("x_m", self.x_m),
+            ("y_m", self.y_m),
+            ("theta_rad", self.theta_rad),
+        ]
+    }
+
+    pub const fn new(x_m: f64, y_m: f64, theta_rad: f64) -> Self {
         Self {
             x_m,
             y_m,

@@ -23,15 +23,15 @@
 //! ```
 
 use super::SlamError;
-use super::loops::LoopConfig;
 use echofield_backend::{Initialisation, OutlierConfig, RobustConfig, RobustKernel, SolverConfig};
+use echofield_frontend::config_check;
 use echofield_frontend::dead_reckoning::DeadReckoningConfig;
 use echofield_frontend::image::ImageConfig;
-use echofield_frontend::matcher::{MatcherConfig, SearchWindow};
+use echofield_frontend::loops::LoopConfig;
+use echofield_frontend::matcher::MatcherConfig;
 use echofield_frontend::mounting::MountingConfig;
 use echofield_frontend::rotation::RotationConfig;
 use echofield_frontend::segmentation::SegmentationConfig;
-use nalgebra::Matrix3;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -128,122 +128,43 @@ impl SlamConfig {
         section("image", self.image.validate())?;
         section("matcher", self.matcher.validate())?;
         self.sequential.validate()?;
-        self.loops.validate()?;
+        self.loops.validate().map_err(SlamError::from_config)?;
         self.backend.validate()?;
         self.evaluation.validate()?;
         Ok(())
     }
 }
 
-/// Checks that `value` is finite and within `[lo, hi]`.
+/// The config form of a window is the matcher's [`SearchWindow`] (one
+/// window type); the alias keeps the name the sections used.
+pub use echofield_frontend::matcher::SearchWindow as Window;
+
+/// [`echofield_frontend::config_check::check_range`] as a [`SlamError`].
 pub(crate) fn check_range(field: &str, value: f64, lo: f64, hi: f64) -> Result<(), SlamError> {
-    if value.is_finite() && value >= lo && value <= hi {
-        Ok(())
-    } else {
-        Err(SlamError::config(
-            field,
-            format!("must be finite and within [{lo}, {hi}], got {value}"),
-        ))
-    }
+    config_check::check_range(field, value, lo, hi).map_err(SlamError::from_config)
 }
 
-/// Three per-axis values `x_m`, `y_m`, `theta_rad`: the half-widths of a
-/// search window, or standard deviations. The config form of the matcher's
-/// [`SearchWindow`] (which accepts unknown keys; this one does not).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Window {
-    /// Along the x axis of the reference node's frame, metres.
-    pub x_m: f64,
-    /// Along its y axis, metres.
-    pub y_m: f64,
-    /// In heading, radians.
-    pub theta_rad: f64,
-}
-
-impl Window {
-    pub const fn new(x_m: f64, y_m: f64, theta_rad: f64) -> Self {
-        Self {
-            x_m,
-            y_m,
-            theta_rad,
-        }
-    }
-
-    /// The standard deviations of `covariance` (x m, y m, θ rad) are
-    /// within these values on every axis.
-    pub fn bounds_sigma(&self, covariance: &Matrix3<f64>) -> bool {
-        covariance[(0, 0)].sqrt() <= self.x_m
-            && covariance[(1, 1)].sqrt() <= self.y_m
-            && covariance[(2, 2)].sqrt() <= self.theta_rad
-    }
-
-    /// `(key, value)` per axis, in TOML order.
-    pub fn axes(&self) -> [(&'static str, f64); 3] {
-        [
-            ("x_m", self.x_m),
-            ("y_m", self.y_m),
-            ("theta_rad", self.theta_rad),
-        ]
-    }
-
-    /// As the matcher's window type.
-    pub fn search(&self) -> SearchWindow {
-        SearchWindow::new(self.x_m, self.y_m, self.theta_rad)
-    }
-}
-
-/// The largest translation half-width or standard deviation of a
-/// [`Window`] in the config, metres. A search window's cost grows with its
-/// area in image cells, and a sonar sees at most a few hundred metres, so
-/// a larger value is a typing error that would only make a run hang.
-pub(crate) const MAX_WINDOW_M: f64 = 1000.0;
-
-/// Checks a window's values, naming the axis: finite, `0 <= x_m, y_m <=`
-/// [`MAX_WINDOW_M`], `0 <= theta_rad <= π`.
+/// [`echofield_frontend::config_check::check_window`] as a [`SlamError`].
 pub(crate) fn check_window(field: &str, window: &Window) -> Result<(), SlamError> {
-    check_range(&format!("{field}.x_m"), window.x_m, 0.0, MAX_WINDOW_M)?;
-    check_range(&format!("{field}.y_m"), window.y_m, 0.0, MAX_WINDOW_M)?;
-    check_range(
-        &format!("{field}.theta_rad"),
-        window.theta_rad,
-        0.0,
-        std::f64::consts::PI,
-    )
+    config_check::check_window(field, window).map_err(SlamError::from_config)
 }
 
-/// Checks that `window` is positive on every axis (a search over a window
-/// of zero width finds nothing; a standard deviation of zero makes an
-/// information matrix infinite).
+/// [`echofield_frontend::config_check::check_positive_window`] as a
+/// [`SlamError`].
 pub(crate) fn check_positive_window(field: &str, window: &Window) -> Result<(), SlamError> {
-    for (axis, value) in window.axes() {
-        if value <= 0.0 {
-            return Err(SlamError::config(
-                format!("{field}.{axis}"),
-                format!("must be > 0, got {value}"),
-            ));
-        }
-    }
-    Ok(())
+    config_check::check_positive_window(field, window).map_err(SlamError::from_config)
 }
 
-/// Checks `lower <= upper` on every axis, naming both keys (`min_window`
-/// against `max_window`: a clamp between them needs the order).
+/// [`echofield_frontend::config_check::check_window_order`] as a
+/// [`SlamError`].
 pub(crate) fn check_window_order(
     lower_field: &str,
     lower: &Window,
     upper_field: &str,
     upper: &Window,
 ) -> Result<(), SlamError> {
-    for ((axis, lo), (_, hi)) in lower.axes().into_iter().zip(upper.axes()) {
-        if lo > hi {
-            return Err(SlamError::config(
-                format!("{lower_field}.{axis}"),
-                format!("{lo} exceeds {upper_field}.{axis} = {hi}; it must not"),
-            ));
-        }
-    }
-    Ok(())
+    config_check::check_window_order(lower_field, lower, upper_field, upper)
+        .map_err(SlamError::from_config)
 }
 
 /// Sequential matching: `S_k` against `I_{k-1}` with the dead-reckoning

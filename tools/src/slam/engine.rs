@@ -59,10 +59,10 @@ mod navigation;
 
 use super::SlamError;
 use super::config::SlamConfig;
-use super::nodes::{NodeData, Skip, build_node};
 use super::result::{IntensityReport, SkippedRotation, StageTimings};
 use echofield_frontend::dead_reckoning::Navigation;
 use echofield_frontend::intensity::IntensityKind;
+use echofield_frontend::nodes::{NodeData, Skip, build_node};
 use echofield_frontend::rotation::{Rotation, RotationStream};
 use echofield_frontend::sensors::{Attitude, DvlVelocity, SensorMounting, SonarBeam};
 use echofield_frontend::warnings::Warnings;
@@ -304,9 +304,14 @@ impl<'c> SlamEngine<'c> {
             let first = rotation.beams.start - offset;
             let beams = &beams[first..first + rotation.beams.len()];
             match self.navigation.current() {
-                Some(navigation) => {
-                    build_node(beams, rotation, navigation, &self.mounting, self.config)
-                }
+                Some(navigation) => build_node(
+                    beams,
+                    rotation,
+                    navigation,
+                    &self.mounting,
+                    &self.config.segmentation,
+                    &self.config.image,
+                ),
                 None => Err(Skip::Outside(format!(
                     "no navigation yet at t = {:.3} s (no time with both a valid DVL sample and a heading)",
                     rotation.end_s
@@ -348,7 +353,7 @@ impl<'c> SlamEngine<'c> {
                 });
                 return Ok(None);
             }
-            Err(Skip::Fatal(error)) => return Err(error),
+            Err(Skip::Fatal(error)) => return Err(error.into()),
         };
         let Some(navigation) = self.navigation.current() else {
             return Ok(None);

@@ -3,7 +3,7 @@
 //! recorded in the output and the run goes on.
 
 use echofield_backend::SolveError;
-use echofield_frontend::FrontendError;
+use echofield_frontend::{FrontendError, StageError};
 use echofield_graph::GraphError;
 use thiserror::Error;
 
@@ -50,6 +50,27 @@ impl SlamError {
         SlamError::Frontend {
             stage: stage.into(),
             error,
+        }
+    }
+}
+
+impl SlamError {
+    /// A config section's [`FrontendError::InvalidConfig`] (its `field`
+    /// the full TOML path) as [`SlamError::Config`]; any other frontend
+    /// error as a config error without a field.
+    pub fn from_config(error: FrontendError) -> Self {
+        match error {
+            FrontendError::InvalidConfig { field, message } => SlamError::Config { field, message },
+            other => SlamError::config("config", other.to_string()),
+        }
+    }
+}
+
+impl From<StageError> for SlamError {
+    fn from(error: StageError) -> Self {
+        SlamError::Frontend {
+            stage: error.stage,
+            error: error.error,
         }
     }
 }

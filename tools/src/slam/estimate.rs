@@ -15,8 +15,8 @@
 
 use super::SlamError;
 use super::config::BackendConfig;
-use super::uncertainty::{LinkGraph, information};
 use echofield_backend::{RobustSolveSummary, SolveSummary, Solver, optimize_robust};
+use echofield_frontend::uncertainty::{LinkGraph, information};
 use echofield_graph::{Edge, EdgeKind, Node, NodeId, PoseGraph, Se2};
 use nalgebra::Matrix3;
 use std::collections::BTreeMap;

@@ -56,12 +56,12 @@
 //!   with the same matches.
 
 use super::config::SlamConfig;
-use super::nodes::NodeData;
 use super::result::{
     LoopEvaluation, LoopRecord, NodeRecord, RecallBin, RecallBudget, RejectReason, Report,
 };
 use crate::eval::{Alignment, ate, cumulative_distance, rpe};
 use crate::matching::ground_truth_at;
+use echofield_frontend::nodes::NodeData;
 use echofield_frontend::scan::Scan;
 use echofield_frontend::sensors::GroundTruthPose;
 use echofield_graph::Se2;

@@ -29,8 +29,9 @@ pub mod evidence;
 
 pub use cause::Cause;
 
-use super::nodes::NodeData;
-use super::result::{LoopRecord, NodeRecord, SequentialRecord};
+use super::node_record::NodeRecord;
+use echofield_frontend::loops::{LoopRecord, SequentialRecord};
+use echofield_frontend::nodes::NodeData;
 use echofield_frontend::sensors::{MountingSource, SensorMounting};
 use evidence::{LoopEvidence, MapEvidence, SequentialEvidence};
 use serde::Serialize;
@@ -192,7 +193,7 @@ impl Health {
 mod tests {
     use super::evidence::{Fit, TranslationFit};
     use super::*;
-    use crate::slam::result::RejectReason;
+    use echofield_frontend::loops::RejectReason;
     use echofield_frontend::sharpness::Sharpness;
 
     fn fit(value: f64, standard_error: f64) -> Fit {

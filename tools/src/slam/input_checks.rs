@@ -6,7 +6,7 @@
 
 use super::SlamError;
 use super::config::SlamConfig;
-use super::nodes::NodeData;
+use echofield_frontend::nodes::NodeData;
 use echofield_frontend::warnings::{Warning, WarningKind};
 use std::ops::Range;
 

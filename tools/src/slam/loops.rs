@@ -14,7 +14,7 @@
 //!    track are bounded, whatever the rotations per metre.
 //! 2. **Gating by uncertainty.** The prior `j_from_k` is the current
 //!    estimate; its covariance the relative uncertainty of the two nodes
-//!    (module [`super::uncertainty`]). The search window is `n_sigma`
+//!    (module [`echofield_frontend::uncertainty`]). The search window is `n_sigma`
 //!    standard deviations per axis, at least `min_window`. A candidate whose
 //!    window would exceed `max_window` is *deferred*: it is retried after
 //!    the next change of the accepted loops (which usually makes the
@@ -62,22 +62,19 @@
 //! same result on any number of threads (timings: EXPERIMENTS.md § Speed
 //! notes).
 
-pub mod checks;
-pub mod config;
-pub mod consistency;
-pub mod cover;
-
-pub use config::LoopConfig;
+pub use echofield_frontend::loops::{LoopConfig, checks, config, consistency, cover};
 
 use super::SlamError;
 use super::estimate::{Estimate, make_edge};
-use super::nodes::{NodeData, predicted_overlap};
-use super::result::{LoopRecord, RejectReason};
-use super::uncertainty::{DriftModel, invert, mahalanobis2, translation_trace, with_floor};
 use checks::{Candidate, examine};
 use consistency::{Clique, ConsistencyGraph, DeadReckoningChain, LoopMeasurement};
 use cover::LoopCover;
+use echofield_frontend::loops::{LoopRecord, RejectReason};
 use echofield_frontend::matcher::{MatcherConfig, SearchWindow};
+use echofield_frontend::nodes::{NodeData, predicted_overlap};
+use echofield_frontend::uncertainty::{
+    DriftModel, invert, mahalanobis2, translation_trace, with_floor,
+};
 use echofield_graph::{EdgeKind, Se2};
 use nalgebra::Matrix3;
 use rayon::prelude::*;
@@ -302,7 +299,7 @@ impl<'a> LoopCloser<'a> {
                 if c.too_uncertain(&self.config.densify_max_window) {
                     continue;
                 }
-                c.raw_window = min.search();
+                c.raw_window = *min;
                 c.densify = true;
                 candidates.push(c);
             }

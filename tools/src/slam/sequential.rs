@@ -28,13 +28,13 @@
 //! each is computed when its newer node is built.
 
 use super::SlamError;
-use super::config::{SlamConfig, Window};
-use super::nodes::NodeData;
-use super::result::{RejectReason, SequentialRecord};
-use super::symmetric::{Fusion, Tolerance, reverse_match};
-use super::uncertainty::{information, mahalanobis2, symmetric, with_floor};
+use super::config::{SequentialConfig, Window};
 use echofield_frontend::dead_reckoning::Navigation;
-use echofield_frontend::matcher::{MatchOutcome, Search, SearchWindow, match_scan};
+use echofield_frontend::loops::{RejectReason, SequentialRecord};
+use echofield_frontend::matcher::symmetric::{Fusion, Tolerance, reverse_match};
+use echofield_frontend::matcher::{MatchOutcome, MatcherConfig, Search, SearchWindow, match_scan};
+use echofield_frontend::nodes::NodeData;
+use echofield_frontend::uncertainty::{information, mahalanobis2, symmetric, with_floor};
 use echofield_graph::Se2;
 use nalgebra::Matrix3;
 
@@ -55,18 +55,19 @@ pub fn odometry(
 
 /// The sequential match of node `k` (`node`) against its predecessor
 /// `prev` (the record `k - 1 -> k`), with the odometry of `navigation` as
-/// prior. `None` when sequential matching is off.
+/// prior, gated by `seq` and matched with `matcher`. `None` when
+/// sequential matching is off.
 pub fn match_next(
     prev: &NodeData,
     node: &NodeData,
     k: usize,
     navigation: &Navigation,
-    config: &SlamConfig,
+    (seq, matcher): (&SequentialConfig, &MatcherConfig),
 ) -> Result<Option<SequentialRecord>, SlamError> {
-    if !config.sequential.enabled {
+    if !seq.enabled {
         return Ok(None);
     }
-    match_one(prev, node, k, navigation, config).map(Some)
+    match_one(prev, node, k, navigation, seq, matcher).map(Some)
 }
 
 fn match_one(
@@ -74,16 +75,12 @@ fn match_one(
     node: &NodeData,
     k: usize,
     navigation: &Navigation,
-    config: &SlamConfig,
+    seq: &SequentialConfig,
+    matcher: &MatcherConfig,
 ) -> Result<SequentialRecord, SlamError> {
-    let seq = &config.sequential;
     let (prior, prior_cov) = odometry(navigation, prev, node)?;
-    let window = SearchWindow::from_covariance(
-        &prior_cov,
-        seq.n_sigma,
-        &seq.min_window.search(),
-        &seq.max_window.search(),
-    );
+    let window =
+        SearchWindow::from_covariance(&prior_cov, seq.n_sigma, &seq.min_window, &seq.max_window);
     let mut record = SequentialRecord {
         from: (k - 1) as u64,
         to: k as u64,
@@ -108,14 +105,8 @@ fn match_one(
         record.rejected_by = Some(RejectReason::DvlGap);
         return Ok(record);
     }
-    let outcome = match_scan(
-        &node.scan.points,
-        &prev.image,
-        &prior,
-        &window,
-        &config.matcher,
-    )
-    .map_err(|e| SlamError::frontend(format!("sequential match {} -> {k}", k - 1), e))?;
+    let outcome = match_scan(&node.scan.points, &prev.image, &prior, &window, matcher)
+        .map_err(|e| SlamError::frontend(format!("sequential match {} -> {k}", k - 1), e))?;
     let m = match outcome {
         MatchOutcome::Match(m) => m,
         MatchOutcome::NoMatch { reason } => {
@@ -144,7 +135,7 @@ fn match_one(
     record.measurement = Some(m.image_from_scan);
     if record.rejected_by.is_none() && seq.symmetric && prev.has_scan() {
         let tolerance = Tolerance {
-            window: seq.reverse_window.search(),
+            window: seq.reverse_window,
             max_translation_m: seq.reverse_max_translation_m,
             max_rotation_rad: seq.reverse_max_rotation_rad,
         };
@@ -153,7 +144,7 @@ fn match_one(
             &prev.scan.points,
             &node.image,
             &tolerance,
-            &config.matcher,
+            matcher,
             Search::Global,
             Fusion::InformationWeighted,
         )
@@ -171,7 +162,7 @@ fn match_one(
 }
 
 /// The covariance of an accepted sequential edge.
-pub fn edge_covariance(record: &SequentialRecord, config: &SlamConfig) -> Option<Matrix3<f64>> {
+pub fn edge_covariance(record: &SequentialRecord, seq: &SequentialConfig) -> Option<Matrix3<f64>> {
     let cov = record.covariance?;
-    Some(with_floor(&cov, &config.sequential.min_sigma))
+    Some(with_floor(&cov, &seq.min_sigma))
 }

@@ -5,10 +5,10 @@
 use crate::slam::config::SlamConfig;
 use crate::slam::estimate::Estimate;
 use crate::slam::loops::LoopCloser;
-use crate::slam::nodes::NodeData;
 use crate::slam::result::SequentialRecord;
 use crate::slam::{SlamError, sequential};
 use echofield_frontend::dead_reckoning::Navigation;
+use echofield_frontend::nodes::NodeData;
 use echofield_graph::EdgeKind;
 use std::time::Instant;
 
@@ -50,7 +50,13 @@ impl<'c> GraphState<'c> {
         let k = self.nodes.len();
         if let Some(prev) = self.nodes.last() {
             let t = Instant::now();
-            let record = sequential::match_next(prev, &node, k, navigation, self.config)?;
+            let record = sequential::match_next(
+                prev,
+                &node,
+                k,
+                navigation,
+                (&self.config.sequential, &self.config.matcher),
+            )?;
             self.sequential.extend(record);
             self.sequential_s += t.elapsed().as_secs_f64();
         }
@@ -127,7 +133,7 @@ impl<'c> GraphState<'c> {
         };
         let (Some(z), Some(cov)) = (
             record.measurement,
-            sequential::edge_covariance(record, self.config),
+            sequential::edge_covariance(record, &self.config.sequential),
         ) else {
             return Ok(());
         };

@@ -1,7 +1,7 @@
 //! The likely cause of a suspect run, and its remedy.
 
 use super::{Check, HealthEvidence, HealthReason};
-use crate::slam::result::RejectReason;
+use echofield_frontend::loops::RejectReason;
 use echofield_frontend::sensors::MountingSource;
 use serde::Serialize;
 

@@ -28,8 +28,9 @@
 //!   optimised pose, on cells of [`MAP_CELL_M`]. The scans are built once,
 //!   so the two maps differ by the node poses alone.
 
-use crate::slam::nodes::NodeData;
-use crate::slam::result::{LoopRecord, NodeRecord, RejectReason, SequentialRecord};
+use crate::slam::node_record::NodeRecord;
+use echofield_frontend::loops::{LoopRecord, RejectReason, SequentialRecord};
+use echofield_frontend::nodes::NodeData;
 use echofield_frontend::sharpness::{Sharpness, sharpness};
 use echofield_graph::Se2;
 use nalgebra::{Matrix4, Vector2, Vector4};

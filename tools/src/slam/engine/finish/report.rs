@@ -2,7 +2,6 @@
 
 use super::super::SlamEngine;
 use crate::slam::evaluation::evaluate;
-use crate::slam::nodes::NodeData;
 use crate::slam::result::{
     DEAD_RECKONING_RATE_HZ, DeadReckoningReport, NodeRecord, OutliersReport, RejectReason, Report,
     SequentialRecord, SkippedRotation, SlamOutput, SolverReport, StageTimings, TimeGap,
@@ -10,6 +9,7 @@ use crate::slam::result::{
 use crate::slam::{SlamError, health, input_checks, navigation_rate, odometry_scale};
 use echofield_backend::RobustSolveSummary;
 use echofield_frontend::dead_reckoning::{DeadReckoningConfig, Navigation};
+use echofield_frontend::nodes::NodeData;
 use echofield_frontend::sensors::{
     AngleDirection, GroundTruthPose, MountingSource, SensorMounting,
 };

@@ -1,10 +1,9 @@
 //! Parameters of loop closing: candidate gating, match checks and mutual
 //! consistency (TOML section `[loops]`).
 
-use crate::slam::SlamError;
-use crate::slam::config::{
-    Window, check_positive_window, check_range, check_window, check_window_order,
-};
+use crate::config_check::{check_positive_window, check_range, check_window, check_window_order};
+use crate::error::FrontendError;
+use crate::matcher::SearchWindow as Window;
 use serde::{Deserialize, Serialize};
 
 /// Loop-closure candidates, their checks and their mutual consistency.
@@ -118,7 +117,7 @@ pub struct LoopConfig {
     pub drift_heading_sigma_rad: f64,
     /// After the mission, match every overlapping pair not yet examined
     /// whose relative pose the optimised estimate already knows well
-    /// (loop densification, [`LoopCloser::densify`](crate::slam::loops::LoopCloser::densify)):
+    /// (loop densification, `LoopCloser::densify` (tools crate, `slam::loops`)):
     /// loops between all the rotations of a revisited place, not only the
     /// `max_candidates_per_node` best. A pair costs a local climb instead of a
     /// search of the window. Default true: it buys recall over node pairs for
@@ -135,7 +134,7 @@ pub struct LoopConfig {
     /// a node, applied to densified loops: a densified loop `(j, k)` enters
     /// the graph with its covariance multiplied by the design effect
     /// `1 + ρ·(m_j + m_k − 2)`, `m_x` the accepted loops at node `x`
-    /// (module doc of [`crate::slam::loops`]). Default 1.0: the densified
+    /// (module doc of `slam::loops` in the tools crate). Default 1.0: the densified
     /// loops at a node count together about as much as one loop.
     pub densify_correlation: f64,
     /// `max_sigma` for the densification pairs: densified matches whose
@@ -153,7 +152,7 @@ pub struct LoopConfig {
     /// the score surface happens to be flattest. The loop's measurement
     /// takes that one component from the estimate (the prior), and its
     /// covariance is the match's marginal across it with a standard
-    /// deviation of [`PARTIAL_SIGMA_M`](crate::slam::loops::checks::PARTIAL_SIGMA_M)
+    /// deviation of [`PARTIAL_SIGMA_M`](crate::loops::checks::PARTIAL_SIGMA_M)
     /// along it: the "solution remapping" of degenerate directions (Zhang,
     /// Kaess and Singh, ICRA 2016). The edge then constrains the two
     /// components the sonar measured and nothing else. Default true.
@@ -176,7 +175,7 @@ pub struct LoopConfig {
     /// accuracy on the St Pere replay (measured: EXPERIMENTS.md § Loop
     /// densification).
     pub densify_min_predicted_overlap: f64,
-    /// Loop sparsification ([`cover`](crate::slam::loops::cover)), metres
+    /// Loop sparsification ([`cover`](crate::loops::cover)), metres
     /// of track travelled by dead reckoning: a pair `(j, k)` is neither
     /// matched nor kept when an accepted loop joins a node within this
     /// distance along the track of `j` to one within it of `k`. It bounds
@@ -225,9 +224,9 @@ impl Default for LoopConfig {
 }
 
 impl LoopConfig {
-    pub fn validate(&self) -> Result<(), SlamError> {
+    pub fn validate(&self) -> Result<(), FrontendError> {
         if self.min_separation_nodes < 2 {
-            return Err(SlamError::config(
+            return Err(FrontendError::config(
                 "loops.min_separation_nodes",
                 "must be at least 2 (consecutive nodes are matched sequentially)",
             ));
@@ -245,7 +244,7 @@ impl LoopConfig {
             1.0,
         )?;
         if self.max_candidates_per_node == 0 {
-            return Err(SlamError::config(
+            return Err(FrontendError::config(
                 "loops.max_candidates_per_node",
                 "must be at least 1 (set `enabled = false` to close no loops)",
             ));

@@ -20,7 +20,8 @@
 //! cover each other; densification picks, in pair order, the pairs that no
 //! accepted loop and no pair picked before covers, matches them, and picks
 //! again among the pairs that only failed picks covered, for at most
-//! [`super::COVER_ROUNDS`] rounds. The kept loops then number at most
+//! `COVER_ROUNDS` rounds (the loop closer, tools `slam::loops`). The kept
+//! loops then number at most
 //! about `(L / spacing)²` times the fraction of pairs that overlap, for a
 //! track of length `L`, whatever the number of rotations: the work and the
 //! edges per metre of track are bounded, not per rotation. A vehicle that

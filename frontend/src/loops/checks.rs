@@ -28,15 +28,15 @@
 //! wider match is kept only when it passes checks 2-4.
 
 use super::LoopConfig;
-use crate::slam::SlamError;
-use crate::slam::config::Window;
-use crate::slam::nodes::NodeData;
-use crate::slam::result::{LoopRecord, RejectReason};
-use crate::slam::symmetric::{Fusion, Tolerance, reverse_match};
-use crate::slam::uncertainty::symmetric;
-use echofield_frontend::matcher::{
+use super::records::{LoopRecord, RejectReason};
+use crate::error::StageError;
+use crate::matcher::SearchWindow as Window;
+use crate::matcher::symmetric::{Fusion, Tolerance, reverse_match};
+use crate::matcher::{
     MatchOutcome, MatchResult, MatcherConfig, Search, SearchWindow, match_scan, match_scan_local,
 };
+use crate::nodes::NodeData;
+use crate::uncertainty::symmetric;
 use echofield_graph::Se2;
 use nalgebra::{Matrix2, Matrix3, Vector2};
 
@@ -129,7 +129,7 @@ pub fn examine(
     nodes: &[NodeData],
     matcher: &MatcherConfig,
     config: &LoopConfig,
-) -> Result<LoopRecord, SlamError> {
+) -> Result<LoopRecord, StageError> {
     let mut record = candidate.record(examined_at, config);
     let (old, new) = (&nodes[candidate.from], &nodes[candidate.to]);
     if !new.has_scan() || !old.has_scan() || old.image.is_empty() || new.image.is_empty() {
@@ -154,7 +154,7 @@ pub fn examine(
             window,
             matcher,
         )
-        .map_err(|e| SlamError::frontend(stage(), e))
+        .map_err(|e| StageError::new(stage(), e))
     };
     let mut outcome = search(&record.window)?;
     // A maximum at the window's edge says the prior was further off than
@@ -204,7 +204,7 @@ pub fn examine(
     // The symmetric check: S_j on I_k, climbing from the inverse of the
     // result (see `symmetric` for why a climb and not a search).
     let tolerance = Tolerance {
-        window: config.reverse_window.search(),
+        window: config.reverse_window,
         max_translation_m: config.reverse_max_translation_m,
         max_rotation_rad: config.reverse_max_rotation_rad,
     };
@@ -217,7 +217,7 @@ pub fn examine(
         Search::Local,
         Fusion::Midpoint,
     )
-    .map_err(|e| SlamError::frontend(format!("reverse {}", stage()), e))?;
+    .map_err(|e| StageError::new(format!("reverse {}", stage()), e))?;
     record.reverse = Some(reverse);
     match measurement {
         Some(z) => record.measurement = Some(z),
@@ -390,7 +390,7 @@ mod tests {
             image_from_scan: Se2::identity(),
             searched_peak: Se2::identity(),
             score: 50.0,
-            quality: echofield_frontend::matcher::MatchQuality {
+            quality: crate::matcher::MatchQuality {
                 mean_intensity: 0.6,
                 inside_fraction: 1.0,
                 points: 100,
@@ -402,7 +402,7 @@ mod tests {
                 1.0_f64.to_radians().powi(2),
             )),
             coarse: Se2::identity(),
-            stats: echofield_frontend::matcher::MatchStats {
+            stats: crate::matcher::MatchStats {
                 angle_step_rad: 0.01,
                 search_nodes: 1,
             },
@@ -442,7 +442,7 @@ mod tests {
         weak.quality.mean_intensity = 0.5 * config.min_mean_intensity;
         let failed = MatchOutcome::Match(Box::new(weak));
         let nothing = MatchOutcome::NoMatch {
-            reason: echofield_frontend::matcher::NoMatchReason::NoOverlap,
+            reason: crate::matcher::NoMatchReason::NoOverlap,
         };
         assert!(escalates(&failed, &c, &window, &config));
         assert!(escalates(&nothing, &c, &window, &config));

@@ -18,14 +18,14 @@
 //! sequential matches the information-weighted mean (see [`Fusion`] for
 //! why and the measured figures).
 
-use super::result::ReverseCheck;
-use super::uncertainty::invert;
-use echofield_frontend::FrontendError;
-use echofield_frontend::image::AcousticImage;
-use echofield_frontend::matcher::{
+use crate::FrontendError;
+use crate::image::AcousticImage;
+use crate::loops::records::ReverseCheck;
+use crate::matcher::{
     CovarianceModel, MatchOptions, MatchResult, MatcherConfig, QualityModel, Search, SearchWindow,
     match_scan_with,
 };
+use crate::uncertainty::invert;
 use echofield_graph::{Se2, wrap_angle};
 use nalgebra::{Matrix3, Point2};
 

@@ -12,15 +12,14 @@
 //!
 //! Rotations are built one at a time, as they complete.
 
-use super::SlamError;
-use super::config::SlamConfig;
-use echofield_frontend::FrontendError;
-use echofield_frontend::dead_reckoning::Navigation;
-use echofield_frontend::image::AcousticImage;
-use echofield_frontend::motion::reference_from_beams;
-use echofield_frontend::rotation::Rotation;
-use echofield_frontend::scan::{Scan, build_scan};
-use echofield_frontend::sensors::{SensorMounting, SonarBeam};
+use crate::dead_reckoning::Navigation;
+use crate::error::{FrontendError, StageError};
+use crate::image::{AcousticImage, ImageConfig};
+use crate::motion::reference_from_beams;
+use crate::rotation::Rotation;
+use crate::scan::{Scan, build_scan};
+use crate::segmentation::SegmentationConfig;
+use crate::sensors::{SensorMounting, SonarBeam};
 use echofield_graph::Se2;
 use std::ops::Range;
 
@@ -67,7 +66,7 @@ pub enum Skip {
     /// Not navigable: skipped and reported.
     Outside(String),
     /// Bad data: the run fails.
-    Fatal(SlamError),
+    Fatal(StageError),
 }
 
 /// The node of `rotation`, whose beams are `beams` (the rotation's own,
@@ -78,10 +77,11 @@ pub fn build_node(
     rotation: &Rotation,
     navigation: &Navigation,
     mounting: &SensorMounting,
-    config: &SlamConfig,
+    segmentation: &SegmentationConfig,
+    image: &ImageConfig,
 ) -> Result<NodeData, Skip> {
     let stage = || format!("rotation {}", rotation.index);
-    let fatal = |e: FrontendError| Skip::Fatal(SlamError::frontend(stage(), e));
+    let fatal = |e: FrontendError| Skip::Fatal(StageError::new(stage(), e));
     let skip_outside = |e: FrontendError| match e {
         FrontendError::OutsideNavigation { .. } => Skip::Outside(e.to_string()),
         other => fatal(other),
@@ -91,18 +91,12 @@ pub fn build_node(
     let dead_reckoning = navigation
         .pose_at(rotation.reference_stamp_s)
         .map_err(skip_outside)?;
-    let scan = match build_scan(
-        beams,
-        &frames,
-        rotation.reference_stamp_s,
-        &config.segmentation,
-    ) {
+    let scan = match build_scan(beams, &frames, rotation.reference_stamp_s, segmentation) {
         Ok(scan) => scan,
         Err(FrontendError::TooFewRanges { .. }) => Scan::empty(rotation.reference_stamp_s),
         Err(e) => return Err(fatal(e)),
     };
-    let image =
-        AcousticImage::build(beams, &scan.image_frames(&frames), &config.image).map_err(fatal)?;
+    let image = AcousticImage::build(beams, &scan.image_frames(&frames), image).map_err(fatal)?;
     let footprint_m = footprint(&scan);
     let in_dvl_gap = navigation
         .dvl_gaps()

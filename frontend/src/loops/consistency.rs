@@ -30,7 +30,7 @@
 //! cover found first with vertices taken in insertion order, so the result
 //! is deterministic.
 
-use crate::slam::uncertainty::{DriftModel, compose, invert, mahalanobis2};
+use crate::uncertainty::{DriftModel, compose, invert, mahalanobis2};
 use echofield_graph::Se2;
 use nalgebra::Matrix3;
 use std::collections::HashMap;

@@ -15,7 +15,7 @@
 //!    the path through the loop edge makes revisits of the same place
 //!    certain;
 //! 2. dead reckoning between the two nodes at node level
-//!    ([`DeadReckoningChain`](super::loops::consistency::DeadReckoningChain)):
+//!    ([`DeadReckoningChain`](crate::loops::consistency::DeadReckoningChain)):
 //!    the odometry edges' translational variances summed along the chain,
 //!    the heading variance bounded by the two nodes' absolute ones (the
 //!    compass does not let it accumulate), inflated by a model error the
@@ -26,7 +26,7 @@
 //!    `Navigation::relative` costs a product over every filter step in
 //!    between.
 
-use super::config::Window;
+use crate::matcher::SearchWindow as Window;
 use echofield_graph::Se2;
 use nalgebra::{Matrix2, Matrix3};
 use std::cmp::Ordering;
