@@ -50,7 +50,10 @@ pub fn write_tum(poses: &[TrajectoryPose], w: &mut dyn Write) -> std::io::Result
     Ok(())
 }
 
-/// Writes CSV with a header row.
+/// Writes CSV with a header row. Every field is a number, so no field
+/// ever needs quoting: plain `write!` is the whole format, and the graph
+/// crate stays free of a CSV dependency (`loops.csv`, with text fields,
+/// uses the `csv` crate).
 pub fn write_csv(poses: &[TrajectoryPose], w: &mut dyn Write) -> std::io::Result<()> {
     writeln!(w, "stamp_s,x_m,y_m,theta_rad")?;
     for p in poses {

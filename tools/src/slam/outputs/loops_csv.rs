@@ -200,12 +200,7 @@ impl LoopRow {
             f(self.reverse_rotation_deg),
             f(self.robust_weight),
             self.accepted.to_string(),
-            // Check names are identifiers; keep the CSV unquoted whatever
-            // a caller puts there.
-            self.rejected_by
-                .as_deref()
-                .unwrap_or("")
-                .replace([',', '"', '\n'], ";"),
+            self.rejected_by.clone().unwrap_or_default(),
             f(self.gt_error_m),
             f(self.gt_error_deg),
             f(self.gt_overlap),
@@ -224,13 +219,15 @@ pub fn reason_name(reason: crate::slam::result::RejectReason) -> String {
     }
 }
 
-/// Writes the header and one line per row.
+/// Writes the header and one line per row (the `csv` crate: fields with a
+/// comma or quote are quoted, so any reject reason reads back).
 pub fn write_loops_csv(rows: &[LoopRow], w: &mut dyn Write) -> std::io::Result<()> {
-    writeln!(w, "{}", COLUMNS.join(","))?;
+    let mut writer = csv::Writer::from_writer(w);
+    writer.write_record(COLUMNS)?;
     for row in rows {
-        writeln!(w, "{}", row.fields().join(","))?;
+        writer.write_record(row.fields())?;
     }
-    Ok(())
+    writer.flush()
 }
 
 /// Reads `loops.csv`. Columns are found by their header names (their order
@@ -242,22 +239,28 @@ pub fn read_loops_csv(path: &Path) -> Result<Vec<LoopRow>> {
     parse_loops_csv(text.strip_prefix('\u{feff}').unwrap_or(&text), path)
 }
 
-/// Parses `loops.csv` text; `path` only names the source in errors.
+/// Parses `loops.csv` text with the `csv` crate (fields trimmed, blank
+/// lines skipped); `path` only names the source in errors.
 pub fn parse_loops_csv(text: &str, path: &Path) -> Result<Vec<LoopRow>> {
-    let mut lines = text
-        .lines()
-        .enumerate()
-        .map(|(i, l)| (i + 1, l.trim_end_matches('\r')))
-        .filter(|(_, l)| !l.trim().is_empty());
-    let Some((_, header)) = lines.next() else {
-        bail!(
+    let mut reader = csv::ReaderBuilder::new()
+        .trim(csv::Trim::All)
+        .from_reader(text.as_bytes());
+    let at = |e: &csv::Error| {
+        let line = e
+            .position()
+            .map_or(String::new(), |p| format!("line {}: ", p.line()));
+        format!("{}: {line}", path.display())
+    };
+    let names: Vec<String> = match reader.headers() {
+        Ok(h) if !h.is_empty() => h.iter().map(str::to_string).collect(),
+        Ok(_) => bail!(
             "{}: empty file, expected a loops.csv header",
             path.display()
-        );
+        ),
+        Err(e) => bail!("{}{e}", at(&e)),
     };
-    let names: Vec<&str> = header.split(',').map(str::trim).collect();
     for required in ["from", "to", "accepted"] {
-        if !names.contains(&required) {
+        if !names.iter().any(|n| n == required) {
             bail!(
                 "{}: line 1: the header has no `{required}` column",
                 path.display()
@@ -265,30 +268,32 @@ pub fn parse_loops_csv(text: &str, path: &Path) -> Result<Vec<LoopRow>> {
         }
     }
     let mut rows = Vec::new();
-    for (line, text) in lines {
-        let fields: Vec<&str> = text.split(',').map(str::trim).collect();
-        if fields.len() != names.len() {
-            bail!(
-                "{}: line {line}: {} fields, the header has {}",
-                path.display(),
-                fields.len(),
-                names.len()
-            );
-        }
+    for record in reader.records() {
+        let record = match record {
+            Ok(r) => r,
+            Err(e) => match e.kind() {
+                csv::ErrorKind::UnequalLengths { len, .. } => {
+                    bail!("{}{len} fields, the header has {}", at(&e), names.len())
+                }
+                _ => bail!("{}{e}", at(&e)),
+            },
+        };
+        let line = record.position().map_or(0, |p| p.line() as usize);
         let get = |name: &str| -> Option<&str> {
             names
                 .iter()
-                .position(|n| *n == name)
-                .map(|i| fields[i])
+                .position(|n| n == name)
+                .and_then(|i| record.get(i))
                 .filter(|v| !v.is_empty())
         };
-        let row = RowParser {
-            path,
-            line,
-            get: &get,
-        }
-        .row()?;
-        rows.push(row);
+        rows.push(
+            RowParser {
+                path,
+                line,
+                get: &get,
+            }
+            .row()?,
+        );
     }
     Ok(rows)
 }
@@ -451,6 +456,18 @@ mod tests {
         assert!(text.lines().nth(1).unwrap().ends_with(",true,fn"), "{text}");
         let back = parse_loops_csv(&text, Path::new("loops.csv")).unwrap();
         assert_eq!(back, rows);
+        // A field with a comma and a quote is quoted, and reads back.
+        let odd = vec![LoopRow {
+            rejected_by: Some("a, \"b\"".into()),
+            ..sample()
+        }];
+        let mut bytes = Vec::new();
+        write_loops_csv(&odd, &mut bytes).unwrap();
+        let text = String::from_utf8(bytes).unwrap();
+        assert_eq!(parse_loops_csv(&text, Path::new("loops.csv")).unwrap(), odd);
+        // Blank lines and CRLF line ends are accepted.
+        let crlf = text.replace('\n', "\r\n\r\n");
+        assert_eq!(parse_loops_csv(&crlf, Path::new("loops.csv")).unwrap(), odd);
     }
 
     #[test]
