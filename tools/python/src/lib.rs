@@ -34,7 +34,7 @@ mod run;
 use pyo3::prelude::*;
 
 pyo3::create_exception!(
-    _native,
+    echofield,
     Error,
     pyo3::exceptions::PyException,
     "A failure of echofield: bad input data (the message names the file, record and field), an invalid configuration, or a failed solve."

@@ -37,9 +37,13 @@ pub struct OptimizeResult {
     /// last least-squares solve).
     #[pyo3(get)]
     iterations: usize,
-    /// Why the solver stopped (`"converged_..."`, `"max_iterations"`, ...).
+    /// Why the solver stopped (`"cost_tolerance"`, `"step_tolerance"`,
+    /// `"max_iterations"`, ...).
     #[pyo3(get)]
     termination: String,
+    /// Whether that reason means "at a minimum".
+    #[pyo3(get)]
+    converged: bool,
     /// Wall time of the solve, s (reading and writing excluded).
     #[pyo3(get)]
     time_s: f64,
@@ -236,6 +240,7 @@ pub fn optimize(
                 0
             },
         termination,
+        converged: least_squares.termination.is_converged(),
         time_s: summary.time_s,
         switched_off: summary.switched_off.iter().map(|s| s.edge).collect(),
         summary: to_python(py, &summary_value)?.unbind(),

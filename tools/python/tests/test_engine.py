@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 import echofield
+from conftest import LOOPS
 
 
 def records_in_time_order(mission):
@@ -48,8 +49,9 @@ def records_in_time_order(mission):
 
 
 def test_engine_beam_by_beam_equals_the_online_replay(tank):
-    batch = echofield.run(tank, online=True)
-    engine = echofield.Engine(mounting=tank.mounting, name=tank.name)
+    batch = echofield.run(tank, config=LOOPS, online=True)
+    assert batch.report["loops_accepted"] > 0
+    engine = echofield.Engine(config=LOOPS, mounting=tank.mounting, name=tank.name)
     push = {
         "beam": engine.push_beam,
         "dvl": engine.push_dvl,

@@ -65,7 +65,9 @@ def test_association_by_nearest_stamp_within_the_tolerance():
 
 def test_rpe_over_ten_metres_on_a_stretched_line():
     # Reference: 21 poses 1 m apart along x. Estimate: 10% longer steps.
-    # Over 10 m: pairs (i, i + 10) for i = 0..10, each 1.0 m too long, no
+    # Over 10 m: pairs (i, i + 10) for i = 0..10, each 1.0 m too long, and
+    # (11, 20), 9 m apart: the nearest to 10 m from pose 11 and within the
+    # tolerance d / 10 = 1 m (inclusive, as evo's), 0.9 m too long. No
     # rotation error.
     reference = stamped([[float(i), 0.0, 0.0] for i in range(21)])
     estimate = stamped([[1.1 * i, 0.0, 0.0] for i in range(21)])
@@ -73,20 +75,23 @@ def test_rpe_over_ten_metres_on_a_stretched_line():
     assert len(ev["rpe"]) == 1  # 50 m is longer than the path
     rpe = ev["rpe"][0]
     assert rpe["distance_m"] == 10.0
-    assert rpe["pairs"] == 11
-    assert rpe["translation_rmse_m"] == pytest.approx(1.0, abs=1e-9)
-    assert rpe["translation_rmse_percent"] == pytest.approx(10.0, abs=1e-7)
+    assert rpe["pairs"] == 12
+    rmse = math.sqrt((11 * 1.0**2 + 0.9**2) / 12)
+    assert rpe["translation_rmse_m"] == pytest.approx(rmse, abs=1e-9)
+    assert rpe["translation_rmse_percent"] == pytest.approx(10.0 * rmse, abs=1e-7)
     assert rpe["rotation_rmse_deg"] == pytest.approx(0.0, abs=1e-12)
 
 
 def test_rpe_rotation_error():
     # The estimate turns 1 degree more per step than the reference (which
-    # goes straight): over 10 m the relative heading is 10 degrees off.
+    # goes straight): over the eleven 10 m pairs the relative heading is 10
+    # degrees off, over the pair (11, 20) (9 m, see above) 9 degrees.
     reference = stamped([[float(i), 0.0, 0.0] for i in range(21)])
     estimate = reference.copy()
     estimate[:, 3] = np.radians(np.arange(21, dtype=float))
     ev = echofield.evaluate(estimate, reference, align="none", rpe_distances=[10.0])
-    assert ev["rpe"][0]["rotation_rmse_deg"] == pytest.approx(10.0, abs=1e-9)
+    rmse_deg = math.sqrt((11 * 10.0**2 + 9.0**2) / 12)
+    assert ev["rpe"][0]["rotation_rmse_deg"] == pytest.approx(rmse_deg, abs=1e-9)
 
 
 def test_tum_files_and_arrays_give_the_same(tmp_path):

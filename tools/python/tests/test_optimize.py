@@ -21,8 +21,8 @@ def test_intel_reaches_the_reference_optimum(tmp_path):
     assert r.poses.shape == (1728, 3)
     assert r.ids.shape == (1728,)
     assert r.final_chi2 == pytest.approx(INTEL_BEST_CHI2, rel=1e-6)
-    assert r.initial_chi2 > 100 * r.final_chi2
-    assert r.termination.startswith("converged")
+    assert r.initial_chi2 > 10 * r.final_chi2
+    assert r.converged and r.termination == r.summary["termination"]
     assert r.summary["final_chi2"] == r.final_chi2
     # The written graph holds the returned poses.
     vertices = [line.split() for line in out.read_text().splitlines() if line.startswith("VERTEX_SE2")]
@@ -75,7 +75,7 @@ def test_robust_switches_a_false_loop_off():
 def test_bad_graphs_raise(tmp_path):
     bad = tmp_path / "bad.g2o"
     bad.write_text("VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 nan\n")
-    with pytest.raises(echofield.Error, match=r"bad\.g2o.*line 2"):
+    with pytest.raises(echofield.Error, match=r"bad\.g2o:2: field `theta`: `nan` is not finite"):
         echofield.optimize(bad)
     with pytest.raises(echofield.Error, match="missing.g2o"):
         echofield.optimize(tmp_path / "missing.g2o")

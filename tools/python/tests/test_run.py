@@ -4,6 +4,7 @@ numpy results."""
 import json
 
 import numpy as np
+import pytest
 
 import echofield
 
@@ -22,7 +23,7 @@ def wrap(a):
 def test_mission_streams(tank):
     # datasets/samples/README.md: 2096 beams, 427 DVL, 1426 attitude and
     # 1426 ground-truth samples.
-    assert tank.name == "tank-seed1"
+    assert tank.name == "tank (simulated, seed 1)"
     beams = tank.beams
     assert beams["stamp_s"].shape == (2096,)
     assert len(beams["intensities"]) == 2096
@@ -70,7 +71,15 @@ def test_run_returns_the_nodes_as_arrays(tank_result):
     for key in ("to", "accepted", "score", "rejected_by", "true_positive"):
         assert len(loops[key]) == k
     assert loops["measurement"].shape == (k, 3)
-    assert int(np.sum(loops["accepted"])) == report["loops_accepted"]
+    accepted = loops["accepted"]
+    assert accepted.dtype == bool
+    assert int(np.sum(accepted)) == report["loops_accepted"] > 0
+    # The config reached the loop gate: no loop spans fewer than 3 rotations.
+    assert np.all(loops["to"] - loops["from"] >= 3)
+    assert np.isfinite(loops["measurement"][accepted]).all()
+    assert all(reason is None for reason, a in zip(loops["rejected_by"], accepted) if a)
+    precision = np.sum(loops["true_positive"][accepted]) / np.sum(accepted)
+    assert precision == pytest.approx(report["loop_precision"], abs=1e-12)
     assert r.config["loops"]["densify"] is True
 
 

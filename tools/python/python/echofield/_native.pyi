@@ -1,6 +1,7 @@
 """Type stubs of the native module echofield._native (tools/python/src)."""
 
 import os
+import pathlib
 from typing import Any, Dict, List, Mapping, Optional, Sequence, Union
 
 import numpy as np
@@ -83,7 +84,7 @@ class RunResult:
     """The content of ``report.json``."""
     config: Dict[str, Any]
     """The effective configuration (``config.toml``)."""
-    output: Optional[str]
+    output: Optional[pathlib.Path]
     """The output folder, when one was written."""
     def __len__(self) -> int: ...
 
@@ -139,6 +140,7 @@ class OptimizeResult:
     final_chi2: float
     iterations: int
     termination: str
+    converged: bool
     time_s: float
     switched_off: List[int]
     summary: Dict[str, Any]
