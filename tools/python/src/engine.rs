@@ -41,7 +41,10 @@ self_cell::self_cell!(
 /// filter and emits a node when the navigation has caught up with its
 /// rotation. Fed a mission's records in time order (at equal stamps DVL,
 /// then attitude, then beams), it gives what `run(mission,
-/// online=True)` gives. A push that raises `echofield.Error` (a sample
+/// online=True)` gives, for a mission that needs none of what `run` does
+/// before the engine: the config's `[mounting] sweep` re-stamping, the
+/// screening of implausible records (dropped with a warning by `run`, an
+/// error here) and the preparation of scan-only (binary) beams. A push that raises `echofield.Error` (a sample
 /// out of order, a value not finite) ends the run: what was emitted
 /// before stays valid, the engine accepts nothing more.
 #[pyclass(module = "echofield")]
