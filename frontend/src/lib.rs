@@ -10,6 +10,7 @@ pub mod error;
 pub mod icp;
 pub mod image;
 pub mod intensity;
+pub mod localization;
 pub mod matcher;
 pub mod motion;
 pub mod mounting;

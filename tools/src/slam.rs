@@ -70,7 +70,7 @@ pub mod sequential;
 pub mod symmetric;
 pub mod uncertainty;
 
-mod pipeline;
+pub(crate) mod pipeline;
 
 pub use config::{BackendConfig, EvaluationConfig, SequentialConfig, SlamConfig, Window};
 pub use engine::{NodeEvent, SlamEngine};
