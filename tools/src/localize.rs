@@ -25,7 +25,7 @@ pub mod outputs;
 pub mod replay;
 pub mod report;
 
-pub use map::{PriorMap, load_prior_map};
+pub use map::{PriorMap, build_prior_map, load_prior_map};
 pub use replay::{Localized, localize_mission};
 pub use report::{LocalizeReport, build_report};
 

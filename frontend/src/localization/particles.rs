@@ -118,12 +118,12 @@ impl KldBounds {
     }
 }
 
-/// Draws a new equally weighted set from `particles` (weights summing to
-/// 1) by KLD sampling. `u0` in `[0, 1)` is the one random number used: the
-/// draws are `u0 + j·φ mod 1` (φ the golden ratio's fractional part), a
-/// low-discrepancy sequence that, like systematic resampling, keeps a
-/// particle's copies close to `N·w`, yet needs no sample count fixed in
-/// advance, which KLD sampling does not know until it stops.
+/// Draws a new equally weighted set from `particles` (their weights sum
+/// to one) by KLD sampling. `u0` in `[0, 1)` is the one random number
+/// used: the draws are `u0 + j·φ mod 1` (φ the golden ratio's fractional
+/// part), a low-discrepancy sequence that, like systematic resampling,
+/// keeps a particle's copies close to `N·w`, yet needs no sample count
+/// fixed in advance, which KLD sampling does not know until it stops.
 pub fn kld_resample(particles: &[Particle], u0: f64, bounds: &KldBounds) -> Vec<Particle> {
     const PHI: f64 = 0.618_033_988_749_894_8;
     if particles.is_empty() {
