@@ -11,6 +11,7 @@ pub mod error;
 pub mod icp;
 pub mod image;
 pub mod intensity;
+pub mod localization;
 pub mod loops;
 pub mod matcher;
 pub mod motion;

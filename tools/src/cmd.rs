@@ -11,6 +11,7 @@ pub mod demo;
 pub mod error_budget;
 pub mod eval;
 pub mod eval_loops;
+pub mod localize;
 pub mod matching;
 pub mod optimize;
 pub mod run;

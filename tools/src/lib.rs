@@ -9,6 +9,7 @@ pub mod config_doc;
 pub mod config_file;
 pub mod eval;
 pub mod fuzz;
+pub mod localize;
 pub mod matching;
 pub mod output;
 pub mod plots;

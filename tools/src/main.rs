@@ -32,6 +32,8 @@ enum Command {
     Simulate(cmd::simulate::Args),
     /// Run the SLAM pipeline over a mission (MCAP or St Pere folder).
     Run(cmd::run::Args),
+    /// Localise a mission on the acoustic map of an earlier run (particle filter).
+    Localize(cmd::localize::Args),
     /// Estimate the sonar head's mounting from the mission's own data.
     Calibrate(cmd::calibrate::Args),
     /// Print the default configuration with each key's documentation.
@@ -78,6 +80,7 @@ fn main() -> ExitCode {
         Command::Convert(args) => cmd::convert::run(args),
         Command::Simulate(args) => cmd::simulate::run(args),
         Command::Run(args) => cmd::run::run(args),
+        Command::Localize(args) => cmd::localize::run(args),
         Command::Calibrate(args) => cmd::calibrate::run(args),
         Command::Config(args) => cmd::config::run(args),
         Command::Match(args) => cmd::matching::run(args),

@@ -68,7 +68,7 @@ pub mod refine;
 pub mod result;
 pub mod sequential;
 
-mod pipeline;
+pub(crate) mod pipeline;
 
 // The frontend modules that lived here before the loop-closure machinery
 // moved to `echofield_frontend` (issue 36), under their old paths for the

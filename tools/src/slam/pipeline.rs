@@ -135,7 +135,7 @@ fn push_navigation(
     }
 }
 
-type Prepared<'m, 'c> = (
+pub(crate) type Prepared<'m, 'c> = (
     Cow<'m, Mission>,
     Cow<'c, SlamConfig>,
     IntensityReport,
@@ -145,7 +145,7 @@ type Prepared<'m, 'c> = (
 /// The mission as the engine gets it: the config's `[mounting]` applied,
 /// implausible records screened out (warned), binary intensities prepared
 /// ([`prepare_scan_only`]); the sensors it needs checked.
-fn prepare<'m, 'c>(
+pub(crate) fn prepare<'m, 'c>(
     mission: &'m Mission,
     config: &'c SlamConfig,
 ) -> Result<Prepared<'m, 'c>, SlamError> {

@@ -1,0 +1,324 @@
+//! `report.json` of `echofield localize`: the verdict, convergence,
+//! kidnappings and recoveries, accuracy against ground truth, particles
+//! and time per rotation, and one record per rotation.
+//!
+//! Accuracy: the estimates live in the map's world frame; they are moved
+//! into the ground truth's frame by the map run's own fit onto its ground
+//! truth ([`super::map::PriorMap::truth_from_map`]), not fitted again, so
+//! that an offset of the localisation shows. `ate_rmse_m` counts the
+//! rotations from the first convergence on (the time to converge is
+//! reported apart). Dead reckoning over the same rotations is fitted onto
+//! the ground truth (its best case: its own frame is unrelated to the
+//! map's).
+
+use super::map::PriorMap;
+use super::replay::Localized;
+use crate::eval::align_se2;
+use crate::slam::RunInfo;
+use echofield_frontend::GroundTruthPose;
+use echofield_frontend::localization::{LocalizationConfig, LocalizationState};
+use echofield_graph::{Se2, wrap_angle};
+use nalgebra::Vector2;
+use serde::Serialize;
+
+/// The whole report.
+#[derive(Clone, Debug, Serialize)]
+pub struct LocalizeReport {
+    pub echofield_version: String,
+    pub mission: String,
+    /// The map's mission and its run folder.
+    pub map_mission: String,
+    pub map_run: String,
+    pub map_nodes: usize,
+    /// Area the map's sonar covered, m².
+    pub map_covered_area_m2: f64,
+    pub rotations: usize,
+    /// `localised` when the last rotation's state is localised or coasting,
+    /// else `not_localised`.
+    pub verdict: String,
+    /// Index (in `per_rotation`) of the first localised rotation.
+    pub converged_rotation: Option<usize>,
+    /// Time from the first rotation to the first localised one, s.
+    pub time_to_converge_s: Option<f64>,
+    /// Share of the rotations from the first convergence on that are
+    /// localised or coasting.
+    pub localised_share: f64,
+    /// Times the filter judged itself lost (kidnapped) and re-seeded.
+    pub recoveries: Vec<Recovery>,
+    /// Fit of the scans at the estimates (mean field value of the points
+    /// inside the map's coverage): mean and largest over the rotations
+    /// with a scan that sees the map.
+    pub fit_mean: f64,
+    pub fit_max: f64,
+    /// ATE RMSE of the estimates from the first convergence on, m (map
+    /// frame moved into the ground truth's by the map run's fit).
+    pub ate_rmse_m: Option<f64>,
+    /// The same estimates fitted onto the ground truth (SE(2)), m.
+    pub ate_rmse_aligned_m: Option<f64>,
+    /// Forward dead reckoning over the same rotations, fitted, m.
+    pub ate_rmse_dead_reckoning_m: Option<f64>,
+    /// Largest position error after convergence, m.
+    pub max_error_m: Option<f64>,
+    /// Rotations more than [`FAR_FROM_MAP_M`] from any map node (true
+    /// position when known, else the estimate), and the ATE over them.
+    pub rotations_far_from_map: usize,
+    pub ate_rmse_far_from_map_m: Option<f64>,
+    pub particles: Stats,
+    /// Wall time of the filter step per rotation, ms.
+    pub filter_time_ms: Stats,
+    /// Wall time per rotation with the scan's building, ms.
+    pub rotation_time_ms: Stats,
+    /// Median time between rotations in the mission, s.
+    pub rotation_period_s: f64,
+    pub config: LocalizationConfig,
+    pub run: Option<RunInfo>,
+    pub per_rotation: Vec<RotationRecord>,
+}
+
+/// Distance from the map's nodes beyond which a rotation counts as "far
+/// from the map" in the report, m.
+pub const FAR_FROM_MAP_M: f64 = 20.0;
+
+/// A kidnapping detected and how long the filter took to localise again.
+#[derive(Clone, Debug, Serialize)]
+pub struct Recovery {
+    /// Rotation (index in `per_rotation`) judged lost.
+    pub lost_rotation: usize,
+    /// First localised rotation after it, if any.
+    pub relocalised_rotation: Option<usize>,
+}
+
+/// p50, p95, mean and max of a set of values.
+#[derive(Clone, Copy, Debug, Default, Serialize)]
+pub struct Stats {
+    pub p50: f64,
+    pub p95: f64,
+    pub mean: f64,
+    pub max: f64,
+}
+
+impl Stats {
+    pub fn of(values: &[f64]) -> Self {
+        if values.is_empty() {
+            return Self::default();
+        }
+        let mut v = values.to_vec();
+        v.sort_by(f64::total_cmp);
+        let q = |f: f64| v[((v.len() - 1) as f64 * f).round() as usize];
+        Self {
+            p50: q(0.5),
+            p95: q(0.95),
+            mean: v.iter().sum::<f64>() / v.len() as f64,
+            max: v[v.len() - 1],
+        }
+    }
+}
+
+/// One rotation.
+#[derive(Clone, Debug, Serialize)]
+pub struct RotationRecord {
+    pub rotation_index: usize,
+    pub stamp_s: f64,
+    pub state: LocalizationState,
+    /// The estimate, map frame.
+    pub x_m: f64,
+    pub y_m: f64,
+    pub theta_rad: f64,
+    pub spread_m: f64,
+    pub heading_spread_rad: f64,
+    pub particles: usize,
+    pub fit: f64,
+    pub coverage: f64,
+    pub reseeded: bool,
+    /// Distance of the estimate to the nearest map node, m.
+    pub distance_to_map_m: f64,
+    /// Position error against the ground truth (see the module doc), m.
+    pub error_m: Option<f64>,
+    pub filter_ms: f64,
+    pub build_ms: f64,
+}
+
+/// Ground truth at `t` by linear interpolation (heading on the short arc);
+/// `None` outside its span.
+pub fn truth_at(truth: &[GroundTruthPose], t: f64) -> Option<Se2> {
+    let i = truth.partition_point(|g| g.stamp_s < t);
+    if truth.get(i).is_some_and(|g| g.stamp_s == t) {
+        return Some(truth[i].world_from_vehicle);
+    }
+    let (a, b) = (truth.get(i.checked_sub(1)?)?, truth.get(i)?);
+    let f = (t - a.stamp_s) / (b.stamp_s - a.stamp_s);
+    let (p, q) = (a.world_from_vehicle, b.world_from_vehicle);
+    Some(Se2::new(
+        p.x() + f * (q.x() - p.x()),
+        p.y() + f * (q.y() - p.y()),
+        p.theta() + f * wrap_angle(q.theta() - p.theta()),
+    ))
+}
+
+fn rmse(errors: &[f64]) -> Option<f64> {
+    (!errors.is_empty())
+        .then(|| (errors.iter().map(|e| e * e).sum::<f64>() / errors.len() as f64).sqrt())
+}
+
+/// Fitted RMSE of `estimate` onto `reference` (pairs).
+fn fitted_rmse(estimate: &[Vector2<f64>], reference: &[Vector2<f64>]) -> Option<f64> {
+    if estimate.len() < 2 {
+        return None;
+    }
+    let t = align_se2(estimate, reference);
+    let errors: Vec<f64> = estimate
+        .iter()
+        .zip(reference)
+        .map(|(p, q)| {
+            let (x, y) = t.transform_xy(p.x, p.y);
+            (q - Vector2::new(x, y)).norm()
+        })
+        .collect();
+    rmse(&errors)
+}
+
+/// The report of `localized` on `map` (see the module doc).
+pub fn build_report(
+    localized: &Localized,
+    map: &PriorMap,
+    map_run: &str,
+    config: &LocalizationConfig,
+    run: Option<RunInfo>,
+) -> LocalizeReport {
+    let rotations = &localized.rotations;
+    let truth: Vec<Option<Se2>> = rotations
+        .iter()
+        .map(|r| truth_at(&localized.ground_truth, r.stamp_s))
+        .collect();
+    let per_rotation: Vec<RotationRecord> = rotations
+        .iter()
+        .zip(&truth)
+        .map(|(r, t)| {
+            let e = r.step.estimate;
+            let error_m = t.zip(map.truth_from_map).map(|(t, m)| {
+                let (x, y) = m.transform_xy(e.x(), e.y());
+                (t.x() - x).hypot(t.y() - y)
+            });
+            RotationRecord {
+                rotation_index: r.rotation_index,
+                stamp_s: r.stamp_s,
+                state: r.step.state,
+                x_m: e.x(),
+                y_m: e.y(),
+                theta_rad: e.theta(),
+                spread_m: r.step.spread_m,
+                heading_spread_rad: r.step.heading_spread_rad,
+                particles: r.step.particles,
+                fit: r.step.fit,
+                coverage: r.step.coverage,
+                reseeded: r.step.reseeded,
+                distance_to_map_m: map.distance_to_nodes_m(e.x(), e.y()),
+                error_m,
+                filter_ms: 1e3 * r.filter_s,
+                build_ms: 1e3 * r.build_s,
+            }
+        })
+        .collect();
+    let converged = per_rotation
+        .iter()
+        .position(|r| r.state == LocalizationState::Localised);
+    let after: &[RotationRecord] = converged.map_or(&[], |k| &per_rotation[k..]);
+    let localised_share = if after.is_empty() {
+        0.0
+    } else {
+        after.iter().filter(|r| r.state.is_localised()).count() as f64 / after.len() as f64
+    };
+    let recoveries = per_rotation
+        .iter()
+        .enumerate()
+        .filter(|(_, r)| r.state == LocalizationState::Lost)
+        .map(|(i, _)| Recovery {
+            lost_rotation: i,
+            relocalised_rotation: per_rotation[i + 1..]
+                .iter()
+                .position(|r| r.state == LocalizationState::Localised)
+                .map(|j| i + 1 + j),
+        })
+        .collect();
+    let fits: Vec<f64> = per_rotation
+        .iter()
+        .filter(|r| r.coverage >= config.min_coverage)
+        .map(|r| r.fit)
+        .collect();
+    // Accuracy from the first convergence on.
+    let start = converged.unwrap_or(per_rotation.len());
+    let errors: Vec<f64> = per_rotation[start..]
+        .iter()
+        .filter_map(|r| r.error_m)
+        .collect();
+    let (mut est, mut dr, mut gt) = (Vec::new(), Vec::new(), Vec::new());
+    let mut far_errors = Vec::new();
+    let mut far = 0;
+    for (k, (r, t)) in rotations.iter().zip(&truth).enumerate() {
+        let reference = match (t, map.truth_from_map) {
+            (Some(t), Some(m)) => Some(m.inverse().compose(t)),
+            _ => None,
+        };
+        let place = reference.unwrap_or(r.step.estimate);
+        let is_far = map.distance_to_nodes_m(place.x(), place.y()) > FAR_FROM_MAP_M;
+        if is_far && k >= start {
+            far += 1;
+            far_errors.extend(per_rotation[k].error_m);
+        }
+        if let Some(t) = t.filter(|_| k >= start) {
+            est.push(r.step.estimate.translation());
+            dr.push(r.dead_reckoning.translation());
+            gt.push(t.translation());
+        }
+    }
+    let periods: Vec<f64> = rotations
+        .windows(2)
+        .map(|w| w[1].stamp_s - w[0].stamp_s)
+        .collect();
+    let rotation_period_s = Stats::of(&periods).p50;
+    let particles: Vec<f64> = per_rotation.iter().map(|r| r.particles as f64).collect();
+    let filter_ms: Vec<f64> = per_rotation.iter().map(|r| r.filter_ms).collect();
+    let total_ms: Vec<f64> = per_rotation
+        .iter()
+        .map(|r| r.filter_ms + r.build_ms)
+        .collect();
+    let localised_at_end = per_rotation.last().is_some_and(|r| r.state.is_localised());
+    LocalizeReport {
+        echofield_version: env!("CARGO_PKG_VERSION").to_string(),
+        mission: localized.mission_name.clone(),
+        map_mission: map.mission.display().to_string(),
+        map_run: map_run.to_string(),
+        map_nodes: map.nodes.len(),
+        map_covered_area_m2: map.field.covered_area_m2(),
+        rotations: per_rotation.len(),
+        verdict: if localised_at_end {
+            "localised"
+        } else {
+            "not_localised"
+        }
+        .to_string(),
+        converged_rotation: converged,
+        time_to_converge_s: converged.map(|k| per_rotation[k].stamp_s - per_rotation[0].stamp_s),
+        localised_share,
+        recoveries,
+        fit_mean: if fits.is_empty() {
+            0.0
+        } else {
+            fits.iter().sum::<f64>() / fits.len() as f64
+        },
+        fit_max: fits.iter().copied().fold(0.0, f64::max),
+        ate_rmse_m: rmse(&errors),
+        ate_rmse_aligned_m: fitted_rmse(&est, &gt),
+        ate_rmse_dead_reckoning_m: fitted_rmse(&dr, &gt),
+        max_error_m: errors.iter().copied().reduce(f64::max),
+        rotations_far_from_map: far,
+        ate_rmse_far_from_map_m: rmse(&far_errors),
+        particles: Stats::of(&particles),
+        filter_time_ms: Stats::of(&filter_ms),
+        rotation_time_ms: Stats::of(&total_ms),
+        rotation_period_s,
+        config: config.clone(),
+        run,
+        per_rotation,
+    }
+}
