@@ -152,7 +152,8 @@ pub fn build_prior_map(
                 r,
                 &navigation,
                 &mission.mounting,
-                &config_used,
+                &config_used.segmentation,
+                &config_used.image,
             ) {
                 Ok(node) => Ok(Some((node, pose))),
                 Err(Skip::Outside(_)) => Ok(None),

@@ -193,7 +193,8 @@ impl ReplayState {
                 &rotation,
                 nav,
                 &mission.mounting,
-                config,
+                &config.segmentation,
+                &config.image,
             ) {
                 Ok(node) => node,
                 Err(Skip::Outside(_)) => continue,
