@@ -67,14 +67,14 @@
 //! assert_eq!(read_mission(&path).unwrap(), mission);
 //! ```
 
-mod cdr;
+pub(crate) mod cdr;
 pub mod fixture;
 pub mod foxglove;
 pub mod json;
 mod reader;
 pub mod ros2;
 pub mod rosbag2;
-mod validate;
+pub(crate) mod validate;
 mod writer;
 
 pub use reader::{ChannelUse, ROLES, TopicChoice, read_mission, read_mission_with};
