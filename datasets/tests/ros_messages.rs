@@ -238,3 +238,26 @@ fn bad_message_names_topic_index_and_field() {
     );
     assert!(e.contains("bad_ping360.mcap"), "{e}");
 }
+
+/// `[mounting]` in a config overrides the /tf_static mounting key by key.
+#[test]
+fn mounting_config_overrides_tf_static() {
+    let (m, _) = read(
+        "ros2_mcap",
+        &[
+            "sonar=/ping360/echo",
+            "dvl=/dvl/marine",
+            "heading=/imu/data",
+            "ground_truth=/odometry",
+        ],
+    );
+    let config = echofield_frontend::mounting::MountingConfig {
+        sonar_yaw_deg: Some(90.0),
+        ..Default::default()
+    };
+    let out = config.apply(&m).unwrap();
+    let s = out.mounting.vehicle_from_sonar;
+    assert!(close(s.theta(), std::f64::consts::FRAC_PI_2, 1e-12));
+    assert!(close(s.x(), 0.5 + 0.2 * 0.1f64.cos(), 1e-9), "{s:?}");
+    assert_eq!(out.mounting.source, MountingSource::Config);
+}
