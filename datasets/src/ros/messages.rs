@@ -228,7 +228,8 @@ pub(crate) fn decode<R: WireReader>(
             validate::attitude(&att)?;
             Ok(Decoded::Attitude(att))
         }
-        MessageType::TfMessage => unreachable!("handled above"),
+        // Read without a header, above.
+        MessageType::TfMessage => Err(FieldError::new("(type)", "TFMessage has no header")),
     }?;
     Ok((decoded, header.frame_id))
 }
@@ -802,5 +803,29 @@ mod tests {
         w.bytes(&[1, 2, 3]);
         let err = cdr_decode(MessageType::Ping360SonarEcho, &w.into_bytes(), 0).unwrap_err();
         assert_eq!(err.field, "intensities");
+    }
+
+    #[test]
+    fn raw_sonar_image_data_length_mismatch_names_the_field() {
+        let mut w = CdrWriter::new();
+        header(&mut w, 1, 0);
+        // ping_info: frequency, sound_speed, no beam widths.
+        w.f32(700e3);
+        w.f32(1500.0);
+        w.u32(0);
+        w.u32(0);
+        w.f32(7500.0); // sample_rate
+        w.u32(4); // samples_per_beam
+        w.u32(0); // sample0
+        w.u32(0); // tx_delays
+        w.u32(0); // tx_angles
+        w.u32(1); // rx_angles
+        w.f32(0.5);
+        w.u8(0); // is_bigendian
+        w.u32(0); // dtype uint8
+        w.u32(1); // beam_count
+        w.bytes(&[1, 2, 3]); // 3 bytes for 4 samples
+        let err = cdr_decode(MessageType::RawSonarImage, &w.into_bytes(), 0).unwrap_err();
+        assert_eq!(err.field, "image.data");
     }
 }
