@@ -8,6 +8,7 @@ pub mod error;
 pub mod mcap;
 pub mod miniking;
 pub mod ping360;
+pub mod ros;
 pub mod sim;
 pub mod sonar_recording;
 pub mod stpere;

@@ -18,13 +18,15 @@
 //! | `/attitude`          | `echofield.Attitude`       | [`Attitude`]       |
 //! | `/ground_truth/pose` | `echofield.GroundTruthPose`| [`GroundTruthPose`]|
 //!
-//! # ROS 2 recordings
+//! # ROS recordings
 //!
 //! [`read_mission`] also reads MCAP files recorded by ROS 2 (`cdr` messages,
-//! `ros2msg` schemas): `sensor_msgs/msg/Imu`, `geometry_msgs/msg/TwistWithCovarianceStamped`,
-//! `nav_msgs/msg/Odometry` or `geometry_msgs/msg/PoseStamped`, and
-//! `echofield_msgs/msg/SonarBeam` (see [`ros2`]). Channels are mapped to
-//! streams by schema name, never by topic name.
+//! `ros2msg` schemas), and [`read_mission_with`] rosbag2 folders (MCAP or
+//! sqlite3 storage) and ROS 1 bags, with the standard messages listed in
+//! [`crate::ros::messages`] (sonar beams, DVL, heading, ground truth) and
+//! the sonar mounting from `/tf_static` ([`crate::ros`]). Channels are
+//! mapped to streams by type name, never by topic name, unless a topic is
+//! chosen.
 //!
 //! # Reading rules
 //!
@@ -67,14 +69,14 @@
 //! assert_eq!(read_mission(&path).unwrap(), mission);
 //! ```
 
-mod cdr;
+pub(crate) mod cdr;
 pub mod fixture;
 pub mod foxglove;
 pub mod json;
 mod reader;
 pub mod ros2;
 pub mod rosbag2;
-mod validate;
+pub(crate) mod validate;
 mod writer;
 
 pub use reader::{ChannelUse, ROLES, TopicChoice, read_mission, read_mission_with};

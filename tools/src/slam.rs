@@ -113,15 +113,15 @@ pub struct NoProgress;
 impl ProgressSink for NoProgress {}
 
 /// Reads a mission: an echofield (or ROS 2) MCAP file, a rosbag2 folder
-/// (`metadata.yaml`, MCAP storage), or a St Pere log folder (which must hold
-/// the raw beams, `_IS.log`).
+/// (`metadata.yaml`, MCAP or sqlite3 storage), a ROS 1 bag, or a St Pere
+/// log folder (which must hold the raw beams, `_IS.log`).
 pub fn load_mission(path: &Path) -> Result<Mission> {
     load_mission_choosing(path, &mcap::TopicChoice::default()).map(|(m, _)| m)
 }
 
-/// [`load_mission`] with the topics of a ROS 2 recording chosen by
+/// [`load_mission`] with the topics of a ROS recording chosen by
 /// `topics` (`--topic ROLE=/name`); also returns what became of each
-/// channel of a ROS 2 or echofield MCAP input (empty for St Pere logs).
+/// channel of a ROS or echofield MCAP input (empty for St Pere logs).
 pub fn load_mission_choosing(
     path: &Path,
     topics: &mcap::TopicChoice,
@@ -133,7 +133,7 @@ pub fn load_mission_choosing(
     }
     if topics.topics.iter().any(Option::is_some) {
         bail!(
-            "--topic applies to ROS 2 recordings (an MCAP file or a rosbag2 folder), and {} is neither",
+            "--topic applies to ROS recordings (an MCAP file, a rosbag2 folder or a ROS 1 bag), and {} is none of them",
             path.display()
         );
     }
@@ -152,7 +152,7 @@ pub fn load_mission_choosing(
         logs.mission
     } else {
         bail!(
-            "{} is neither an MCAP file, a rosbag2 folder nor a St Pere log folder",
+            "{} is neither an MCAP file, a ROS 1 bag, a rosbag2 folder nor a St Pere log folder",
             path.display()
         );
     };

@@ -64,7 +64,6 @@ impl<'a> CdrReader<'a> {
     }
 
     /// Bytes left after the current position.
-    #[cfg(test)]
     pub fn remaining(&self) -> usize {
         self.body.len() - self.pos
     }
@@ -94,9 +93,20 @@ impl<'a> CdrReader<'a> {
         Ok(out)
     }
 
-    #[cfg(test)]
     pub fn u8(&mut self, field: &str) -> Result<u8, FieldError> {
         Ok(self.take(field, 1, 1)?[0])
+    }
+
+    pub fn u16(&mut self, field: &str) -> Result<u16, FieldError> {
+        Ok(u16::from_ne_bytes(self.array(field)?))
+    }
+
+    pub fn i64(&mut self, field: &str) -> Result<i64, FieldError> {
+        Ok(i64::from_ne_bytes(self.array(field)?))
+    }
+
+    pub fn f32(&mut self, field: &str) -> Result<f32, FieldError> {
+        Ok(f32::from_ne_bytes(self.array(field)?))
     }
 
     pub fn u32(&mut self, field: &str) -> Result<u32, FieldError> {
@@ -109,15 +119,6 @@ impl<'a> CdrReader<'a> {
 
     pub fn f64(&mut self, field: &str) -> Result<f64, FieldError> {
         Ok(f64::from_ne_bytes(self.array(field)?))
-    }
-
-    /// A fixed-size `float64[N]`.
-    pub fn f64_array<const N: usize>(&mut self, field: &str) -> Result<[f64; N], FieldError> {
-        let mut out = [0.0; N];
-        for (i, v) in out.iter_mut().enumerate() {
-            *v = self.f64(&format!("{field}[{i}]"))?;
-        }
-        Ok(out)
     }
 
     /// A `string`: length (with the NUL) checked against the payload before
@@ -172,6 +173,18 @@ impl CdrWriter {
     #[cfg(test)]
     pub fn u8(&mut self, v: u8) {
         self.buf.push(v);
+    }
+
+    #[cfg(test)]
+    pub fn u16(&mut self, v: u16) {
+        self.align(2);
+        self.buf.extend_from_slice(&v.to_le_bytes());
+    }
+
+    #[cfg(test)]
+    pub fn f32(&mut self, v: f32) {
+        self.align(4);
+        self.buf.extend_from_slice(&v.to_le_bytes());
     }
 
     pub fn u32(&mut self, v: u32) {

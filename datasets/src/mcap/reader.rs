@@ -3,57 +3,59 @@
 
 mod container;
 
-use super::ros2::{self, Ros2Kind};
+use super::cdr::CdrReader;
+use super::rosbag2::{self, Storage};
 use super::validate::{self, FieldError};
 use super::{FORMAT_VERSION, METADATA_NAME, json};
 use super::{TOPIC_ATTITUDE, TOPIC_BEAM, TOPIC_DVL, TOPIC_GROUND_TRUTH};
 use crate::DatasetError;
-use echofield_frontend::sensors::{
-    Attitude, DvlVelocity, GroundTruthPose, Mission, SensorMounting, SonarBeam,
-};
+use crate::ros::messages::{self, Decoded, MessageType, Stream, Transform};
+use crate::ros::wire::Ros1Reader;
+use crate::ros::{bag, sqlite, tf};
+use echofield_frontend::sensors::{Mission, SensorMounting};
 use echofield_frontend::warnings::{Warning, WarningKind};
 use mcap::records::Record;
 use std::collections::HashMap;
 use std::fs::File;
 use std::path::{Path, PathBuf};
 
-/// One decoded sensor record.
-#[derive(Debug)]
-pub(crate) enum Decoded {
-    Beam(SonarBeam),
-    Dvl(DvlVelocity),
-    Attitude(Attitude),
-    GroundTruth(GroundTruthPose),
-}
-
-/// The sensor streams of a mission, in `Mission` field order.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Stream {
-    Beam,
-    Dvl,
-    Attitude,
-    GroundTruth,
-}
-
 const STREAM_NAMES: [&str; 4] = ["sonar beams", "DVL", "attitude", "ground truth"];
+
+/// The serialisation of a ROS message.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Wire {
+    /// CDR (ROS 2).
+    Cdr,
+    /// The ROS 1 wire format (bags).
+    Ros1,
+}
 
 #[derive(Debug, Clone, Copy)]
 enum Decoder {
     Json(Stream),
-    Ros2(Ros2Kind),
+    Ros(MessageType, Wire),
 }
 
 impl Decoder {
-    fn stream(self) -> Stream {
+    /// The stream a topic of this decoder feeds when chosen by type alone.
+    fn stream(self) -> Option<Stream> {
         match self {
-            Decoder::Json(s) => s,
-            Decoder::Ros2(Ros2Kind::Imu) => Stream::Attitude,
-            Decoder::Ros2(Ros2Kind::TwistWithCovarianceStamped) => Stream::Dvl,
-            Decoder::Ros2(Ros2Kind::Odometry | Ros2Kind::PoseStamped) => Stream::GroundTruth,
-            Decoder::Ros2(Ros2Kind::SonarBeam) => Stream::Beam,
+            Decoder::Json(s) => Some(s),
+            Decoder::Ros(ty, _) => ty.stream(),
+        }
+    }
+
+    /// Whether the topic can feed `stream` when chosen for it.
+    fn can_feed(self, stream: Stream) -> bool {
+        match self {
+            Decoder::Json(s) => s == stream,
+            Decoder::Ros(ty, _) => ty.can_feed(stream),
         }
     }
 }
+
+/// The topic that carries the static transforms.
+const TF_STATIC: &str = "/tf_static";
 
 /// Reads a mission from an echofield or ROS 2 MCAP file (see the module
 /// documentation of [`crate::mcap`] for the rules: sorting, duplicates,
@@ -70,27 +72,65 @@ pub fn read_mission(path: &Path) -> Result<Mission, DatasetError> {
 
 /// [`read_mission`] with the topics of each stream chosen by `choice`
 /// (`--topic ROLE=/name`), also from a rosbag2 folder (`metadata.yaml`
-/// with MCAP storage: its files in order); returns what became of every
+/// with MCAP or sqlite3 storage: its files in order) and from a ROS 1 bag
+/// (a file starting `#ROSBAG V2.0`); returns what became of every
 /// channel. A stream fed by several topics of a supported type needs a
-/// choice: without one it is an error that names them.
+/// choice: without one it is an error that names them. The message types
+/// read and their conventions are listed in [`crate::ros::messages`];
+/// the sonar mounting comes from `/tf_static` when the input has no
+/// echofield metadata ([`ChannelUse`] of `/tf_static` says what was found).
 pub fn read_mission_with(
     path: &Path,
     choice: &TopicChoice,
 ) -> Result<(Mission, Vec<ChannelUse>), DatasetError> {
-    let files = if path.is_dir() {
-        super::rosbag2::mcap_files(path)?
-    } else {
-        vec![path.to_path_buf()]
-    };
     let mut state = State::new(path, choice);
+    let (storage, files) = if path.is_dir() {
+        rosbag2::storage_files(path)?
+    } else if bag::is_bag(path) {
+        state.start_file(path);
+        bag::for_each_message(path, |record| match record {
+            bag::BagRecord::Connection(id, topic, type_name) => {
+                let decoder =
+                    MessageType::from_type_name(type_name).map(|ty| Decoder::Ros(ty, Wire::Ros1));
+                state.add_channel(id, topic, type_name, decoder);
+                Ok(())
+            }
+            bag::BagRecord::Message(id, time_ns, data) => state.message(id, time_ns, data),
+        })?;
+        return state.finish();
+    } else {
+        (Storage::Mcap, vec![path.to_path_buf()])
+    };
     for file_path in &files {
-        let file = File::open(file_path).map_err(|e| DatasetError::io(file_path, e))?;
-        let len = file
-            .metadata()
-            .map_err(|e| DatasetError::io(file_path, e))?
-            .len();
         state.start_file(file_path);
-        container::for_each_record(file_path, file, len, |record| state.on_record(record))?;
+        match storage {
+            Storage::Mcap => {
+                let file = File::open(file_path).map_err(|e| DatasetError::io(file_path, e))?;
+                let len = file
+                    .metadata()
+                    .map_err(|e| DatasetError::io(file_path, e))?
+                    .len();
+                container::for_each_record(file_path, file, len, |record| state.on_record(record))?;
+            }
+            Storage::Sqlite3 => sqlite::for_each_message(file_path, |record| match record {
+                sqlite::SqliteRecord::Topic(topic) => {
+                    let decoder = match MessageType::from_type_name(&topic.type_name) {
+                        Some(ty) if topic.serialization_format == "cdr" => {
+                            Some(Decoder::Ros(ty, Wire::Cdr))
+                        }
+                        _ => None,
+                    };
+                    // Topic ids are small row ids; the channel table is
+                    // keyed by u32 (an id beyond it matches no message).
+                    let id = u32::try_from(topic.id).unwrap_or(u32::MAX);
+                    state.add_channel(id, &topic.name, &topic.type_name, decoder);
+                    Ok(())
+                }
+                sqlite::SqliteRecord::Message(topic_id, time_ns, data) => {
+                    state.message(u32::try_from(topic_id).unwrap_or(u32::MAX), time_ns, data)
+                }
+            })?,
+        }
     }
     state.finish()
 }
@@ -152,6 +192,16 @@ struct Channel {
     decoder: Option<Decoder>,
 }
 
+/// Whether a topic chosen explicitly for one role is kept from the default
+/// choice of the others.
+fn chosen_elsewhere(choice: &TopicChoice, topic: &str, stream: usize) -> bool {
+    choice
+        .topics
+        .iter()
+        .enumerate()
+        .any(|(s, t)| s != stream && t.as_deref() == Some(topic))
+}
+
 /// A topic seen in the input, with the records decoded from it when its
 /// type feeds a stream (kept until [`State::finish`] chooses the topic of
 /// each stream).
@@ -160,6 +210,8 @@ struct Topic {
     decoder: Option<Decoder>,
     messages: u64,
     records: Vec<Decoded>,
+    /// `header.frame_id` of its first decoded message.
+    frame_id: Option<String>,
 }
 
 struct State<'c> {
@@ -169,8 +221,9 @@ struct State<'c> {
     choice: &'c TopicChoice,
     /// schema id -> (name, encoding), of the current file.
     schemas: HashMap<u16, (String, String)>,
-    /// channel id -> channel, of the current file.
-    channels: HashMap<u16, Channel>,
+    /// channel (MCAP), topic (sqlite3) or connection (ROS 1) id ->
+    /// channel, of the current file.
+    channels: HashMap<u32, Channel>,
     /// Every topic by name, in the order first seen.
     topics: Vec<(String, Topic)>,
     messages: u64,
@@ -214,9 +267,7 @@ impl<'c> State<'c> {
             }
             Record::Channel(channel) => self.on_channel(channel)?,
             Record::Message { header, data } => {
-                let index = self.messages;
-                self.messages += 1;
-                self.on_message(index, header.channel_id, header.log_time, &data)?;
+                self.message(u32::from(header.channel_id), header.log_time, &data)?;
             }
             Record::Metadata(metadata) if metadata.name == METADATA_NAME => {
                 self.on_metadata(&metadata.metadata)?;
@@ -228,7 +279,7 @@ impl<'c> State<'c> {
 
     fn on_channel(&mut self, channel: mcap::records::Channel) -> Result<(), DatasetError> {
         // The summary section repeats channels; the first record decides.
-        if self.channels.contains_key(&channel.id) {
+        if self.channels.contains_key(&u32::from(channel.id)) {
             return Ok(());
         }
         let schema = if channel.schema_id == 0 {
@@ -244,34 +295,44 @@ impl<'c> State<'c> {
         };
         let decoder = classify(&channel.topic, &channel.message_encoding, schema)
             .map_err(|message| self.format_error(message))?;
-        if !self.topics.iter().any(|(t, _)| *t == channel.topic) {
+        let schema_name = schema.map(|s| s.0.clone()).unwrap_or_default();
+        self.add_channel(u32::from(channel.id), &channel.topic, &schema_name, decoder);
+        Ok(())
+    }
+
+    /// Registers a channel (MCAP), topic (sqlite3) or connection (ROS 1)
+    /// of the current file; the first of a topic decides its type.
+    fn add_channel(&mut self, id: u32, topic: &str, type_name: &str, decoder: Option<Decoder>) {
+        if !self.topics.iter().any(|(t, _)| t == topic) {
             self.topics.push((
-                channel.topic.clone(),
+                topic.to_string(),
                 Topic {
-                    schema: schema.map(|s| s.0.clone()).unwrap_or_default(),
+                    schema: type_name.to_string(),
                     decoder,
                     messages: 0,
                     records: Vec::new(),
+                    frame_id: None,
                 },
             ));
         }
         self.channels.insert(
-            channel.id,
+            id,
             Channel {
-                topic: channel.topic,
+                topic: topic.to_string(),
                 decoder,
             },
         );
-        Ok(())
     }
 
-    fn on_message(
+    /// One message of the current file, numbered in file order.
+    fn message(
         &mut self,
-        index: u64,
-        channel_id: u16,
+        channel_id: u32,
         log_time_ns: u64,
         data: &[u8],
     ) -> Result<(), DatasetError> {
+        let index = self.messages;
+        self.messages += 1;
         let Some(channel) = self.channels.get(&channel_id) else {
             return Err(self.format_error(format!(
                 "message {index} refers to channel id {channel_id} which has no Channel record before it"
@@ -286,18 +347,44 @@ impl<'c> State<'c> {
         let Some(decoder) = decoder else {
             return Ok(());
         };
-        let decoded = match decoder {
-            Decoder::Json(Stream::Beam) => json::decode_beam(data).map(Decoded::Beam),
-            Decoder::Json(Stream::Dvl) => json::decode_dvl(data).map(Decoded::Dvl),
-            Decoder::Json(Stream::Attitude) => json::decode_attitude(data).map(Decoded::Attitude),
-            Decoder::Json(Stream::GroundTruth) => {
-                json::decode_ground_truth(data).map(Decoded::GroundTruth)
+        // Not decoded: dynamic transforms, and topics of a stream whose
+        // topic is chosen (unless chosen themselves).
+        let needed = match decoder.stream() {
+            None => topic == TF_STATIC,
+            Some(s) => {
+                let choice = &self.choice.topics;
+                choice[s as usize].as_ref().is_none_or(|t| *t == topic)
+                    || choice.iter().any(|t| t.as_deref() == Some(topic.as_str()))
             }
-            Decoder::Ros2(kind) => ros2::decode(kind, data, log_time_ns),
         };
-        let decoded = decoded.map_err(|e: FieldError| {
+        if !needed {
+            return Ok(());
+        }
+        let decoded = match decoder {
+            Decoder::Json(Stream::Beam) => {
+                json::decode_beam(data).map(|b| (Decoded::Beams(vec![b]), None))
+            }
+            Decoder::Json(Stream::Dvl) => json::decode_dvl(data).map(|d| (Decoded::Dvl(d), None)),
+            Decoder::Json(Stream::Attitude) => {
+                json::decode_attitude(data).map(|a| (Decoded::Attitude(a), None))
+            }
+            Decoder::Json(Stream::GroundTruth) => {
+                json::decode_ground_truth(data).map(|g| (Decoded::GroundTruth(g), None))
+            }
+            Decoder::Ros(ty, Wire::Cdr) => CdrReader::new(data)
+                .and_then(|mut r| messages::decode(ty, &mut r, log_time_ns))
+                .map(|(d, frame)| (d, Some(frame))),
+            Decoder::Ros(ty, Wire::Ros1) => {
+                messages::decode(ty, &mut Ros1Reader::new(data), log_time_ns)
+                    .map(|(d, frame)| (d, Some(frame)))
+            }
+        };
+        let (decoded, frame_id) = decoded.map_err(|e: FieldError| {
             e.at(&self.file, format!("message {index} (topic `{topic}`)"))
         })?;
+        if entry.frame_id.is_none() {
+            entry.frame_id = frame_id;
+        }
         entry.records.push(decoded);
         Ok(())
     }
@@ -336,40 +423,67 @@ impl<'c> State<'c> {
         if self.metadata.is_none() && chosen.iter().all(Option::is_none) {
             return Err(DatasetError::Missing {
                 what: format!(
-                    "echofield or ROS 2 mission channels (topics in the input: {}; read types: {})",
+                    "echofield or ROS mission topics (topics in the input: {}; read types: {})",
                     self.topic_list(),
                     supported_types(None)
                 ),
                 path: self.path,
             });
         }
+        // The sonar's frame, for its mounting in the static transforms.
+        let sonar_frame = chosen[Stream::Beam as usize].as_ref().and_then(|name| {
+            self.topics
+                .iter()
+                .find(|(n, _)| n == name)
+                .and_then(|(_, t)| t.frame_id.clone())
+        });
         let mut mission = Mission::default();
         let mut uses = Vec::with_capacity(self.topics.len());
+        let mut static_transforms: Vec<Transform> = Vec::new();
+        let mut tf_use = None;
         for (name, topic) in self.topics {
-            let stream = topic.decoder.map(Decoder::stream);
-            let used = stream.filter(|s| chosen[*s as usize].as_deref() == Some(name.as_str()));
-            let reason = match (stream, used) {
-                (Some(s), Some(_)) if self.choice.topics[s as usize].is_some() => {
+            let used = (0..4)
+                .find(|&s| chosen[s].as_deref() == Some(name.as_str()))
+                .map(stream_of);
+            let default_stream = topic.decoder.and_then(Decoder::stream);
+            let is_tf = matches!(topic.decoder, Some(Decoder::Ros(MessageType::TfMessage, _)));
+            let reason = match (used, default_stream) {
+                (Some(s), _) if self.choice.topics[s as usize].is_some() => {
                     format!("chosen with --topic {}", ROLES[s as usize])
                 }
-                (Some(_), Some(_)) => "the only topic of its type".to_string(),
-                (Some(s), None) => format!(
+                (Some(_), _) => "the only topic of its type".to_string(),
+                (None, Some(s)) if chosen_elsewhere(self.choice, &name, s as usize) => {
+                    "chosen for another role".to_string()
+                }
+                (None, Some(s)) => format!(
                     "another topic feeds the {} (`{}`)",
                     STREAM_NAMES[s as usize],
                     chosen[s as usize].as_deref().unwrap_or("")
                 ),
-                (None, _) if topic.schema.is_empty() => "no schema".to_string(),
-                (None, _) => format!("type `{}` is not one echofield reads", topic.schema),
+                (None, None) if is_tf && name == TF_STATIC => String::new(),
+                (None, None) if is_tf => format!(
+                    "dynamic transforms are not read (the sonar mounting comes from {TF_STATIC})"
+                ),
+                (None, None) if topic.schema.is_empty() => "no schema".to_string(),
+                (None, None) => format!("type `{}` is not one echofield reads", topic.schema),
             };
-            if used.is_some() {
-                for record in topic.records {
-                    match record {
-                        Decoded::Beam(b) => mission.beams.push(b),
-                        Decoded::Dvl(d) => mission.dvl.push(d),
-                        Decoded::Attitude(a) => mission.attitude.push(a),
-                        Decoded::GroundTruth(g) => mission.ground_truth.push(g),
+            for record in topic.records {
+                match (record, used) {
+                    (Decoded::Transforms(t), _) if is_tf && name == TF_STATIC => {
+                        static_transforms.extend(t)
                     }
+                    (_, None) => {}
+                    (Decoded::Beams(b), _) => mission.beams.extend(b),
+                    (Decoded::Dvl(d), _) => mission.dvl.push(d),
+                    (Decoded::Attitude(a), _) => mission.attitude.push(a),
+                    (Decoded::GroundTruth(g), _) => mission.ground_truth.push(g),
+                    (Decoded::Odometry(_, d), Some(Stream::Dvl)) => mission.dvl.push(d),
+                    (Decoded::Odometry(g, _), _) => mission.ground_truth.push(g),
+                    (Decoded::Transforms(_), _) => {}
                 }
+            }
+            if is_tf && name == TF_STATIC {
+                tf_use = Some(uses.len());
             }
             uses.push(ChannelUse {
                 topic: name,
@@ -383,6 +497,9 @@ impl<'c> State<'c> {
             Some((name, mounting)) => {
                 mission.name = name;
                 mission.mounting = mounting;
+                if let Some(i) = tf_use {
+                    uses[i].reason = "the file's echofield metadata gives the mounting".into();
+                }
             }
             None => {
                 mission.mounting = SensorMounting::assumed_identity();
@@ -391,6 +508,22 @@ impl<'c> State<'c> {
                     .file_stem()
                     .map(|s| s.to_string_lossy().into_owned())
                     .unwrap_or_default();
+                if let Some(i) = tf_use {
+                    let found = sonar_frame
+                        .as_deref()
+                        .and_then(|f| tf::sonar_mounting(&static_transforms, f));
+                    uses[i].reason = match (&found, sonar_frame.as_deref()) {
+                        (Some(m), _) => {
+                            mission.mounting = m.apply(&mission.mounting);
+                            uses[i].role = Some("mounting");
+                            m.describe()
+                        }
+                        (None, Some(frame)) => format!(
+                            "no static transform has the sonar frame `{frame}` as child: mounting unknown"
+                        ),
+                        (None, None) => "no sonar topic names its frame: mounting unknown".into(),
+                    };
+                }
             }
         }
         // Stable sorts: equal stamps keep their file order. Records that
@@ -419,37 +552,46 @@ impl<'c> State<'c> {
     }
 
     /// The topic of each stream: the chosen one (which must exist and be of
-    /// a type of its stream), or the only topic of a type of the stream.
+    /// a type that can feed the stream), or the only topic of a type of the
+    /// stream that is not chosen for another role.
     fn choose_topics(&self) -> Result<[Option<String>; 4], DatasetError> {
         let mut chosen: [Option<String>; 4] = Default::default();
         for (s, slot) in chosen.iter_mut().enumerate() {
+            let stream = stream_of(s);
             let candidates: Vec<&str> = self
                 .topics
                 .iter()
-                .filter(|(_, t)| t.decoder.map(|d| d.stream() as usize) == Some(s))
+                .filter(|(n, t)| {
+                    t.decoder.and_then(Decoder::stream) == Some(stream)
+                        && !chosen_elsewhere(self.choice, n, s)
+                })
                 .map(|(n, _)| n.as_str())
                 .collect();
             let role = ROLES[s];
             *slot = match &self.choice.topics[s] {
-                Some(wanted) if candidates.contains(&wanted.as_str()) => Some(wanted.clone()),
-                Some(wanted) => {
-                    let message = match self.topics.iter().find(|(n, _)| n == wanted) {
-                        Some((_, t)) => format!(
-                            "--topic {role}={wanted}: the topic carries `{}`, which is not a {} type echofield reads ({})",
-                            t.schema,
-                            STREAM_NAMES[s],
-                            supported_types(Some(s))
-                        ),
-                        None => format!(
-                            "--topic {role}={wanted}: no such topic (topics in the input: {})",
-                            self.topic_list()
-                        ),
-                    };
-                    return Err(DatasetError::Format {
-                        path: self.path.clone(),
-                        message,
-                    });
-                }
+                Some(wanted) => match self.topics.iter().find(|(n, _)| n == wanted) {
+                    Some((_, t)) if t.decoder.is_some_and(|d| d.can_feed(stream)) => {
+                        Some(wanted.clone())
+                    }
+                    found => {
+                        let message = match found {
+                            Some((_, t)) => format!(
+                                "--topic {role}={wanted}: the topic carries `{}`, which is not a {} type echofield reads ({})",
+                                t.schema,
+                                STREAM_NAMES[s],
+                                supported_types(Some(s))
+                            ),
+                            None => format!(
+                                "--topic {role}={wanted}: no such topic (topics in the input: {})",
+                                self.topic_list()
+                            ),
+                        };
+                        return Err(DatasetError::Format {
+                            path: self.path.clone(),
+                            message,
+                        });
+                    }
+                },
                 None if candidates.len() > 1 => {
                     return Err(DatasetError::Format {
                         path: self.path.clone(),
@@ -489,6 +631,16 @@ impl<'c> State<'c> {
     }
 }
 
+/// The stream of index `s` (in `ROLES` order).
+fn stream_of(s: usize) -> Stream {
+    [
+        Stream::Beam,
+        Stream::Dvl,
+        Stream::Attitude,
+        Stream::GroundTruth,
+    ][s.min(3)]
+}
+
 /// The message types read for stream `s` (every stream with `None`).
 fn supported_types(s: Option<usize>) -> String {
     let json = [
@@ -503,9 +655,9 @@ fn supported_types(s: Option<usize>) -> String {
             names.push(name);
         }
     }
-    for kind in Ros2Kind::ALL {
-        if s.is_none_or(|s| Decoder::Ros2(kind).stream() as usize == s) {
-            names.push(kind.schema_name());
+    for ty in MessageType::ALL {
+        if s.is_none_or(|s| ty.can_feed(stream_of(s))) {
+            names.push(ty.type_name());
         }
     }
     names.join(", ")
@@ -566,13 +718,15 @@ fn classify(
         }
         return Ok(Some(Decoder::Json(stream)));
     }
-    if let Some(kind) = Ros2Kind::from_schema_name(name) {
-        if message_encoding != ros2::MESSAGE_ENCODING || schema_encoding != ros2::SCHEMA_ENCODING {
-            return Err(format!(
-                "channel `{topic}`: schema `{name}` with message encoding `{message_encoding}` and schema encoding `{schema_encoding}` is not supported (expected `cdr` / `ros2msg`)"
-            ));
-        }
-        return Ok(Some(Decoder::Ros2(kind)));
+    if let Some(ty) = MessageType::from_type_name(name) {
+        return match message_encoding {
+            super::ros2::MESSAGE_ENCODING => Ok(Some(Decoder::Ros(ty, Wire::Cdr))),
+            // ROS 1 messages in MCAP (`ros1msg` schemas).
+            "ros1" => Ok(Some(Decoder::Ros(ty, Wire::Ros1))),
+            _ => Err(format!(
+                "channel `{topic}`: schema `{name}` with message encoding `{message_encoding}` and schema encoding `{schema_encoding}` is not supported (expected `cdr` or `ros1`)"
+            )),
+        };
     }
     if [TOPIC_BEAM, TOPIC_DVL, TOPIC_ATTITUDE, TOPIC_GROUND_TRUTH].contains(&topic) {
         return Err(format!(

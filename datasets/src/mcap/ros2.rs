@@ -1,5 +1,7 @@
-//! ROS 2 recordings: the standard messages users already record, in MCAP
-//! files with `cdr` message encoding and `ros2msg` schemas.
+//! ROS 2 recordings written by echofield ([`write_mission_ros2`]): the
+//! message types below, in MCAP files with `cdr` message encoding and
+//! `ros2msg` schemas. Reading them, and every other standard message
+//! echofield reads, is [`crate::ros::messages`].
 //!
 //! | schema                                          | stream        | fields used |
 //! |-------------------------------------------------|---------------|-------------|
@@ -20,10 +22,8 @@
 //! covariance with element 0 = -1 marks the DVL sample invalid, and an
 //! all-zero covariance means "unknown" (no covariance).
 
-mod decode;
 mod write;
 
-pub(crate) use decode::decode;
 pub use write::{Ros2GroundTruth, write_mission_ros2};
 
 /// Message encoding of ROS 2 channels.

@@ -1,11 +1,12 @@
 //! rosbag2 folders: a `metadata.yaml` beside the storage files that
 //! `ros2 bag record` writes.
 //!
-//! Only MCAP storage is read (its files, in the order `relative_file_paths`
-//! lists them, each an MCAP file of ROS 2 messages); a folder with sqlite3
-//! storage is an error that says how to convert it (`ros2 bag convert`).
-//! Compressed files (`compression_mode: FILE`) are refused the same way;
-//! MCAP's own chunk compression is read as usual.
+//! MCAP storage (each file an MCAP file of ROS 2 messages) and sqlite3
+//! storage (`.db3` files, [`crate::ros::sqlite`]) are read, their files in
+//! the order `relative_file_paths` lists them; another storage is an error
+//! that says how to convert it (`ros2 bag convert`). Compressed files
+//! (`compression_mode: FILE`) are refused the same way; MCAP's own chunk
+//! compression is read as usual.
 
 use crate::DatasetError;
 use std::path::{Path, PathBuf};
@@ -19,8 +20,29 @@ pub fn is_rosbag2(dir: &Path) -> bool {
     dir.join(METADATA_FILE).is_file()
 }
 
-/// The MCAP files of the rosbag2 folder `dir`, in recording order.
+/// The storage of a rosbag2 folder.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Storage {
+    Mcap,
+    Sqlite3,
+}
+
+/// The MCAP files of the rosbag2 folder `dir`, in recording order (an
+/// error for another storage).
 pub fn mcap_files(dir: &Path) -> Result<Vec<PathBuf>, DatasetError> {
+    let (storage, files) = storage_files(dir)?;
+    if storage != Storage::Mcap {
+        return Err(DatasetError::Format {
+            path: dir.join(METADATA_FILE),
+            message: "the recording's storage is sqlite3, not MCAP".to_string(),
+        });
+    }
+    Ok(files)
+}
+
+/// The storage and the files of the rosbag2 folder `dir`, in recording
+/// order.
+pub fn storage_files(dir: &Path) -> Result<(Storage, Vec<PathBuf>), DatasetError> {
     let path = dir.join(METADATA_FILE);
     if !path.is_file() {
         return Err(DatasetError::Missing {
@@ -46,16 +68,20 @@ pub fn mcap_files(dir: &Path) -> Result<Vec<PathBuf>, DatasetError> {
     let storage = info["storage_identifier"]
         .as_str()
         .ok_or_else(|| field("storage_identifier", "missing or not a string"))?;
-    if storage != "mcap" {
-        return Err(field(
-            "storage_identifier",
-            &format!(
-                "`{storage}` storage is not read; convert the recording to MCAP with \
+    let storage = match storage {
+        "mcap" => Storage::Mcap,
+        "sqlite3" => Storage::Sqlite3,
+        _ => {
+            return Err(field(
+                "storage_identifier",
+                &format!(
+                    "`{storage}` storage is not read (mcap and sqlite3 are); convert the recording to MCAP with \
                  `ros2 bag convert -i {} -o out.yaml` (out.yaml: `output_bags: [{{uri: bag_mcap, storage_id: mcap}}]`)",
-                dir.display()
-            ),
-        ));
-    }
+                    dir.display()
+                ),
+            ));
+        }
+    };
     if let Some(mode) = info["compression_mode"].as_str()
         && !mode.is_empty()
         && mode != "NONE"
@@ -87,7 +113,7 @@ pub fn mcap_files(dir: &Path) -> Result<Vec<PathBuf>, DatasetError> {
     if out.is_empty() {
         return Err(field("relative_file_paths", "lists no file"));
     }
-    Ok(out)
+    Ok((storage, out))
 }
 
 #[cfg(test)]
@@ -117,9 +143,9 @@ mod tests {
     }
 
     #[test]
-    fn sqlite_storage_missing_files_and_bad_yaml_are_named() {
+    fn other_storage_missing_files_and_bad_yaml_are_named() {
         let dir = folder(
-            &MCAP.replace("mcap\n  compression", "sqlite3\n  compression"),
+            &MCAP.replace("mcap\n  compression", "leveldb\n  compression"),
             &[],
         );
         let e = mcap_files(dir.path()).unwrap_err().to_string();

@@ -9,11 +9,15 @@
 //! u32 sec + u32 nsec), 0x04 index data and 0x06 chunk info (not needed to
 //! read everything in order).
 //!
-//! Why not the `rosbag` crate: these bags use uncompressed chunks, which need
-//! ~200 lines; the crate brings bzip2/lz4 bindings and memory-mapping for
-//! features not needed here, and its errors carry no byte offsets.
-//! Compressed chunks (`bz2`, `lz4`) are a clear [`DatasetError::Format`]
-//! (`rosbag decompress` converts such a bag).
+//! ROS 1 bags with standard messages are read with the `rosbag` crate
+//! ([`crate::ros::bag`], compressed chunks too). This reader is kept for
+//! the MiniKing logs because it reads a damaged bag up to the broken
+//! record and names that record's byte offset (`stopped_early`), which the
+//! crate's errors do not carry; moving the MiniKing reader onto the crate
+//! (and so reading its compressed bags) is open. Compressed chunks (`bz2`,
+//! `lz4`) are a clear [`DatasetError::Format`] here (`rosbag decompress`
+//! converts such a bag, or `echofield convert ros` reads it if its
+//! messages are standard ones).
 
 use crate::error::DatasetError;
 use std::collections::BTreeMap;

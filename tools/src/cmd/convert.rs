@@ -1,7 +1,7 @@
 //! `echofield convert`: real logs into echofield MCAP missions.
 
 use anyhow::{Context, Result};
-use echofield_datasets::mcap::write_mission;
+use echofield_datasets::mcap::{TopicChoice, read_mission_with, write_mission};
 use echofield_datasets::miniking::read_miniking_bag;
 use echofield_datasets::ping360::read_ping360;
 use echofield_datasets::sonar_recording::SonarRecording;
@@ -24,6 +24,37 @@ pub enum Args {
     /// beams only.
     #[command(after_help = MINIKING_EXAMPLES)]
     Miniking(SonarArgs),
+    /// A ROS recording with standard messages: a ROS 2 MCAP file, a
+    /// rosbag2 folder (MCAP or sqlite3 storage) or a ROS 1 bag; the sonar
+    /// mounting from /tf_static.
+    #[command(after_help = ROS_EXAMPLES)]
+    Ros(RosArgs),
+}
+
+const ROS_EXAMPLES: &str = "\
+Examples:
+  echofield convert ros my_rosbag2_folder --output mission.mcap
+  echofield convert ros mission.bag --topic sonar=/sonar_micron_ros --topic heading=/imu/data \\
+    --output mission.mcap
+
+Read types (see `echofield run --help`): sonar ping360_sonar_msgs/SonarEcho,
+marine_acoustic_msgs/RawSonarImage, sensor_msgs/LaserScan, echofield_msgs/SonarBeam;
+DVL marine_acoustic_msgs/Dvl, dvl_msgs/DVL, waterlinked_a50_ros_driver/DVL,
+geometry_msgs/TwistWithCovarianceStamped, nav_msgs/Odometry (its twist, when chosen);
+heading sensor_msgs/Imu, geometry_msgs/QuaternionStamped; ground truth
+nav_msgs/Odometry, geometry_msgs/PoseStamped. Each topic's use is printed.";
+
+#[derive(Debug, clap::Args)]
+pub struct RosArgs {
+    /// The recording: MCAP file, rosbag2 folder or ROS 1 bag.
+    pub input: PathBuf,
+    /// Output MCAP file (written atomically).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// The topic of a role, `ROLE=/name` (roles: sonar, dvl, heading,
+    /// ground_truth); needed where several topics carry a role's types.
+    #[arg(long = "topic", value_name = "ROLE=/NAME", value_parser = TopicChoice::parse_assignment)]
+    pub topics: Vec<(usize, String)>,
 }
 
 const STPERE_EXAMPLES: &str = "\
@@ -112,7 +143,29 @@ pub fn run(args: Args) -> Result<()> {
         Args::Stpere(a) => stpere(&a),
         Args::Ping360(a) => sonar(&a, read_ping360),
         Args::Miniking(a) => sonar(&a, read_miniking_bag),
+        Args::Ros(a) => ros(&a),
     }
+}
+
+fn ros(args: &RosArgs) -> Result<()> {
+    super::prepare_output_files([Some(&args.output)])?;
+    let mut choice = TopicChoice::default();
+    for (role, topic) in &args.topics {
+        choice.topics[*role] = Some(topic.clone());
+    }
+    let (mission, channels) = read_mission_with(&args.input, &choice)
+        .with_context(|| format!("cannot read {}", args.input.display()))?;
+    super::run::print_channels(&channels);
+    write(&args.output, &mission)?;
+    println!(
+        "wrote {}: {} beams, {} DVL, {} attitude, {} ground-truth poses",
+        args.output.display(),
+        mission.beams.len(),
+        mission.dvl.len(),
+        mission.attitude.len(),
+        mission.ground_truth.len()
+    );
+    Ok(())
 }
 
 fn stpere(args: &StPereArgs) -> Result<()> {

@@ -41,6 +41,11 @@ Examples:
   # it used or skipped, and why
   echofield run my_bag --topic ground_truth=/gps/odom --output out/bag
 
+  # A ROS 1 bag with two sonar and two Imu topics, the filtered odometry's
+  # twist as velocity (a topic chosen for one role feeds no other)
+  echofield run mission.bag --topic sonar=/sonar_micron_ros \
+    --topic heading=/imu/data --topic dvl=/odometry/filtered --output out/bag
+
   # Online: the mission fed record by record through the causal engine; each
   # node's estimate as emitted goes to online_tum.txt, the latency per
   # rotation and the ATE of the emitted estimates to report.json → online
@@ -70,11 +75,14 @@ ground truth).";
 #[command(after_help = EXAMPLES)]
 pub struct Args {
     /// The mission: an MCAP file (echofield's or a ROS 2 recording), a
-    /// rosbag2 folder (MCAP storage), or a St Pere log folder.
+    /// rosbag2 folder (MCAP or sqlite3 storage), a ROS 1 bag, or a St Pere
+    /// log folder. ROS recordings: standard messages (`echofield convert
+    /// ros --help` lists them), the sonar mounting from /tf_static.
     pub mission: PathBuf,
-    /// ROS 2 input: the topic that feeds a stream, as ROLE=/name (roles:
+    /// ROS input: the topic that feeds a stream, as ROLE=/name (roles:
     /// sonar, dvl, heading, ground_truth); repeat for several. A stream
-    /// with one topic of a type echofield reads needs none.
+    /// with one topic of a type echofield reads needs none; a topic chosen
+    /// for one role feeds no other.
     #[arg(long = "topic", value_name = "ROLE=/NAME", value_parser = TopicChoice::parse_assignment)]
     pub topics: Vec<(usize, String)>,
     /// Pipeline configuration (TOML); defaults for missing keys.
@@ -111,8 +119,8 @@ pub struct Args {
     pub online: bool,
 }
 
-/// What became of each channel of a ROS 2 recording, one line each.
-fn print_channels(channels: &[ChannelUse]) {
+/// What became of each channel of a ROS recording, one line each.
+pub(crate) fn print_channels(channels: &[ChannelUse]) {
     // echofield's own files have one known channel per stream: nothing to say.
     if channels.iter().all(|c| c.schema.starts_with("echofield.")) {
         return;

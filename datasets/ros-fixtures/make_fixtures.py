@@ -1,0 +1,260 @@
+"""Writes the ROS recordings in this folder with the independent `rosbags`
+package (https://pypi.org/project/rosbags/), for the readers' tests
+(datasets/tests/ros_messages.rs).
+
+Usage (from the repository root, with `rosbags` and `numpy` installed):
+    python datasets/ros-fixtures/make_fixtures.py datasets/ros-fixtures
+
+Every value the tests check is written here by hand; see the comments.
+"""
+
+import math
+import shutil
+import sys
+from pathlib import Path
+
+import numpy as np
+from rosbags.rosbag1 import Writer as Writer1
+from rosbags.rosbag2 import StoragePlugin, Writer as Writer2
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tools"))
+import ros_msg_defs  # noqa: E402
+
+T0 = 1_700_000_000  # s
+
+
+def quat_z(yaw):
+    return 0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)
+
+
+class Msgs:
+    """Builds the fixture's messages for one type store (ROS 1 or ROS 2)."""
+
+    def __init__(self, store, ros1):
+        self.T = store.types
+        self.ros1 = ros1
+
+    def header(self, t, frame):
+        sec = int(t)
+        stamp = self.T["builtin_interfaces/msg/Time"](sec=sec, nanosec=int(round((t - sec) * 1e9)))
+        if self.ros1:
+            return self.T["std_msgs/msg/Header"](seq=0, stamp=stamp, frame_id=frame)
+        return self.T["std_msgs/msg/Header"](stamp=stamp, frame_id=frame)
+
+    def v3(self, x, y, z):
+        return self.T["geometry_msgs/msg/Vector3"](x=x, y=y, z=z)
+
+    def quat(self, yaw):
+        x, y, z, w = quat_z(yaw)
+        return self.T["geometry_msgs/msg/Quaternion"](x=x, y=y, z=z, w=w)
+
+    def ping360(self, t, k, angle=None):
+        # angle 0.1·k rad, range 10 m over 5 samples (2 m bins), bins [k, 1, 2, 3, 4].
+        return self.T["ping360_sonar_msgs/msg/SonarEcho"](
+            header=self.header(t, "sonar_link"),
+            angle=0.1 * k if angle is None else angle,
+            gain=1, number_of_samples=5, transmit_frequency=750, speed_of_sound=1500, range=10,
+            intensities=np.array([k, 1, 2, 3, 4], dtype=np.uint8),
+        )
+
+    def raw_image(self, t, k):
+        # 1 beam at 0.5 + k rad; 1500 m/s at 7500 Hz: 0.1 m bins; sample0 2: first bin 0.2 m;
+        # tx delay 0.01 s; 4 uint8 samples [10, 20, 30, 40 + k].
+        T = self.T
+        return T["marine_acoustic_msgs/msg/RawSonarImage"](
+            header=self.header(t, "sonar_link"),
+            ping_info=T["marine_acoustic_msgs/msg/PingInfo"](
+                frequency=700e3, sound_speed=1500.0,
+                tx_beamwidths=np.array([0.03], dtype=np.float32), rx_beamwidths=np.array([0.5], dtype=np.float32)),
+            sample_rate=7500.0, samples_per_beam=4, sample0=2,
+            tx_delays=np.array([0.01], dtype=np.float32), tx_angles=np.array([0.0], dtype=np.float32),
+            rx_angles=np.array([0.5 + k], dtype=np.float32),
+            image=T["marine_acoustic_msgs/msg/SonarImageData"](
+                is_bigendian=False, dtype=0, beam_count=1, data=np.array([10, 20, 30, 40 + k], dtype=np.uint8)),
+        )
+
+    def scan(self, t):
+        # A sweep of 3 rays from -0.5 rad by 0.25 rad, 0.01 s apart; ranges 4 m, none (inf), 8 m;
+        # range_max 10 m (0.02 m bins: bins 200 and 400).
+        return self.T["sensor_msgs/msg/LaserScan"](
+            header=self.header(t, "sonar_link"),
+            angle_min=-0.5, angle_max=0.0, angle_increment=0.25, time_increment=0.01, scan_time=0.03,
+            range_min=0.5, range_max=10.0,
+            ranges=np.array([4.0, np.inf, 8.0], dtype=np.float32),
+            intensities=np.array([], dtype=np.float32),
+        )
+
+    def one_beam_scan(self, t, k):
+        # The Girona caves layout: one beam per message, angle in angle_min (0.2·k rad),
+        # angle_increment 0, intensities = 4 bins over [0, 20 m] (5 m bins): [0, 50, 191, 7].
+        return self.T["sensor_msgs/msg/LaserScan"](
+            header=self.header(t, "micron"),
+            angle_min=0.2 * k, angle_max=0.2 * k, angle_increment=0.0, time_increment=0.0, scan_time=0.0,
+            range_min=0.0, range_max=20.0,
+            ranges=np.array([1.0, 2.0, 3.0, 4.0], dtype=np.float32),
+            intensities=np.array([0.0, 50.0, 191.0, 7.0], dtype=np.float32),
+        )
+
+    def marine_dvl(self, t):
+        # Bottom track, velocity (0.5, 0.1, 0.05) m/s with z down; covariance diag 0.01.
+        T = self.T
+        cov = np.zeros(9)
+        cov[[0, 4, 8]] = 0.01
+        return T["marine_acoustic_msgs/msg/Dvl"](
+            header=self.header(t, "dvl_link"), velocity_mode=1, dvl_type=0,
+            velocity=self.v3(0.5, 0.1, 0.05), velocity_covar=cov, altitude=3.0, course_gnd=0.2, speed_gnd=0.51,
+            num_good_beams=4, sound_speed=1500.0, beam_ranges_valid=True, beam_velocities_valid=True,
+            beam_unit_vec=[self.v3(0.0, 0.0, 1.0)] * 4, range=np.full(4, 3.5),
+            range_covar=np.zeros(4, dtype=np.float32), beam_quality=np.zeros(4, dtype=np.float32),
+            beam_velocity=np.zeros(4, dtype=np.float32), beam_velocity_covar=np.zeros(4, dtype=np.float32),
+        )
+
+    def water_linked(self, t, valid):
+        # Velocity (0.3, -0.2, 0.1) m/s (x forward, y starboard, z down); ROS 2: covariance diag 0.0004.
+        T = self.T
+        pkg = "waterlinked_a50_ros_driver" if self.ros1 else "dvl_msgs"
+        beams = [T[f"{pkg}/msg/DVLBeam"](id=i, velocity=0.1, distance=2.0, rssi=-40.0, nsd=-90.0, valid=True) for i in range(4)]
+        fields = dict(header=self.header(t, "dvl_link"), time=12.5, velocity=self.v3(0.3, -0.2, 0.1), fom=0.002,
+                      altitude=2.0, beams=beams, velocity_valid=valid, status=0, form="json_v3")
+        if not self.ros1:
+            cov = np.zeros(9)
+            cov[[0, 4, 8]] = 0.0004
+            fields.update(covariance=cov, time_of_validity=0, time_of_transmission=0)
+        return T[f"{pkg}/msg/DVL"](**fields)
+
+    def twist(self, t):
+        # (0.25, 0.0, 0.0) m/s, unknown covariance (all zero).
+        T = self.T
+        return T["geometry_msgs/msg/TwistWithCovarianceStamped"](
+            header=self.header(t, "base_link"),
+            twist=T["geometry_msgs/msg/TwistWithCovariance"](
+                twist=T["geometry_msgs/msg/Twist"](linear=self.v3(0.25, 0.0, 0.0), angular=self.v3(0.0, 0.0, 0.0)),
+                covariance=np.zeros(36)),
+        )
+
+    def odometry(self, t):
+        # Pose (1, 2) m, yaw 0.3 rad; twist (0.4, 0, 0) m/s in base_link.
+        T = self.T
+        return T["nav_msgs/msg/Odometry"](
+            header=self.header(t, "odom"), child_frame_id="base_link",
+            pose=T["geometry_msgs/msg/PoseWithCovariance"](
+                pose=T["geometry_msgs/msg/Pose"](position=T["geometry_msgs/msg/Point"](x=1.0, y=2.0, z=-5.0), orientation=self.quat(0.3)),
+                covariance=np.zeros(36)),
+            twist=T["geometry_msgs/msg/TwistWithCovariance"](
+                twist=T["geometry_msgs/msg/Twist"](linear=self.v3(0.4, 0.0, 0.0), angular=self.v3(0.0, 0.0, 0.0)),
+                covariance=np.zeros(36)),
+        )
+
+    def imu(self, t):
+        # Yaw 0.2 rad, yaw rate 0.05 rad/s.
+        return self.T["sensor_msgs/msg/Imu"](
+            header=self.header(t, "imu_link"), orientation=self.quat(0.2), orientation_covariance=np.zeros(9),
+            angular_velocity=self.v3(0.0, 0.0, 0.05), angular_velocity_covariance=np.zeros(9),
+            linear_acceleration=self.v3(0.0, 0.0, 9.8), linear_acceleration_covariance=np.zeros(9),
+        )
+
+    def heading(self, t):
+        # Yaw -0.4 rad.
+        return self.T["geometry_msgs/msg/QuaternionStamped"](header=self.header(t, "compass"), quaternion=self.quat(-0.4))
+
+    def tf(self, t, parent, child, xyz, yaw, roll=0.0):
+        T = self.T
+        # Rz(yaw)·Rx(roll) as a quaternion.
+        cy, sy, cr, sr = math.cos(yaw / 2), math.sin(yaw / 2), math.cos(roll / 2), math.sin(roll / 2)
+        q = T["geometry_msgs/msg/Quaternion"](x=cy * sr, y=sy * sr, z=sy * cr, w=cy * cr)
+        ts = T["geometry_msgs/msg/TransformStamped"](
+            header=self.header(t, parent), child_frame_id=child,
+            transform=T["geometry_msgs/msg/Transform"](translation=self.v3(*xyz), rotation=q))
+        return T["tf2_msgs/msg/TFMessage"](transforms=[ts])
+
+
+def messages(m, ros1):
+    """(topic, type, time, message) of the fixture, in time order."""
+    out = [
+        # base_link -> mast -> sonar_link: sonar at (0.5 + 0.2·cos 0.1, -0.1 + 0.2·sin 0.1) m, yaw 0.1 rad.
+        ("/tf_static", "tf2_msgs/msg/TFMessage", 0.0, m.tf(0.0, "base_link", "mast", (0.5, -0.1, 0.3), 0.1)),
+        ("/tf_static", "tf2_msgs/msg/TFMessage", 0.0, m.tf(0.0, "mast", "sonar_link", (0.2, 0.0, 0.0), 0.0)),
+        ("/tf", "tf2_msgs/msg/TFMessage", 0.05, m.tf(0.05, "odom", "base_link", (1.0, 2.0, 0.0), 0.3)),
+    ]
+    for k in range(3):
+        t = 0.1 * (k + 1)
+        out.append(("/ping360/echo", "ping360_sonar_msgs/msg/SonarEcho", t, m.ping360(T0 + t, k)))
+    for k in range(2):
+        t = 0.15 + 0.1 * k
+        out.append(("/sonar/raw", "marine_acoustic_msgs/msg/RawSonarImage", t, m.raw_image(T0 + t, k)))
+    out.append(("/sonar/scan", "sensor_msgs/msg/LaserScan", 0.2, m.scan(T0 + 0.2)))
+    for k in range(2):
+        t = 0.1 + 0.2 * k
+        out.append(("/dvl/marine", "marine_acoustic_msgs/msg/Dvl", t, m.marine_dvl(T0 + t)))
+        dvl_type = "waterlinked_a50_ros_driver/msg/DVL" if ros1 else "dvl_msgs/msg/DVL"
+        out.append(("/dvl/data", dvl_type, t, m.water_linked(T0 + t, valid=k == 0)))
+        out.append(("/dvl/twist", "geometry_msgs/msg/TwistWithCovarianceStamped", t, m.twist(T0 + t)))
+        out.append(("/odometry", "nav_msgs/msg/Odometry", t, m.odometry(T0 + t)))
+        out.append(("/odometry/filtered", "nav_msgs/msg/Odometry", t, m.odometry(T0 + t)))
+        out.append(("/imu/data", "sensor_msgs/msg/Imu", t, m.imu(T0 + t)))
+        out.append(("/heading", "geometry_msgs/msg/QuaternionStamped", t, m.heading(T0 + t)))
+    if ros1:
+        for k in range(2):
+            t = 0.12 + 0.1 * k
+            out.append(("/sonar_micron_ros", "sensor_msgs/msg/LaserScan", t, m.one_beam_scan(T0 + t, k)))
+    out.sort(key=lambda e: e[2])
+    return out
+
+
+def write_ros2(folder, storage):
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    ros_msg_defs.register(store)
+    m = Msgs(store, ros1=False)
+    shutil.rmtree(folder, ignore_errors=True)
+    with Writer2(folder, version=8, storage_plugin=storage) as w:
+        conns = {}
+        for topic, ty, t, msg in messages(m, ros1=False):
+            if topic not in conns:
+                conns[topic] = w.add_connection(topic, ty, typestore=store)
+            w.write(conns[topic], int((T0 + t) * 1e9), store.serialize_cdr(msg, ty))
+
+
+def write_ros1(path, compression):
+    store = get_typestore(Stores.ROS1_NOETIC)
+    ros_msg_defs.register(store)
+    if "tf2_msgs/msg/TFMessage" not in store.types:
+        # tf2_msgs/TFMessage (ROS 1 noetic), missing from rosbags' ROS 1 store.
+        store.register(get_types_from_msg("geometry_msgs/TransformStamped[] transforms", "tf2_msgs/msg/TFMessage"))
+    m = Msgs(store, ros1=True)
+    path.unlink(missing_ok=True)
+    writer = Writer1(path)
+    writer.set_compression(compression)
+    with writer as w:
+        conns = {}
+        for topic, ty, t, msg in messages(m, ros1=True):
+            if topic not in conns:
+                conns[topic] = w.add_connection(topic, ty, typestore=store)
+            w.write(conns[topic], int((T0 + t) * 1e9), store.serialize_ros1(msg, ty))
+
+
+def write_bad(folder):
+    """A rosbag2 (MCAP) whose second SonarEcho has a NaN angle."""
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    ros_msg_defs.register(store)
+    m = Msgs(store, ros1=False)
+    shutil.rmtree(folder, ignore_errors=True)
+    ty = "ping360_sonar_msgs/msg/SonarEcho"
+    with Writer2(folder, version=8, storage_plugin=StoragePlugin.MCAP) as w:
+        c = w.add_connection("/ping360/echo", ty, typestore=store)
+        for k in range(3):
+            msg = m.ping360(T0 + k, k, angle=float("nan") if k == 1 else None)
+            w.write(c, int((T0 + k) * 1e9), store.serialize_cdr(msg, ty))
+
+
+def main(out):
+    out = Path(out)
+    write_ros2(out / "ros2_mcap", StoragePlugin.MCAP)
+    write_ros2(out / "ros2_sqlite3", StoragePlugin.SQLITE3)
+    write_ros1(out / "ros1_lz4.bag", Writer1.CompressionFormat.LZ4)
+    write_ros1(out / "ros1_bz2.bag", Writer1.CompressionFormat.BZ2)
+    write_bad(out / "bad_ping360")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1])

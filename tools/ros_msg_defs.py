@@ -1,0 +1,129 @@
+"""Definitions of the third-party ROS messages echofield reads, for the
+`rosbags` type system (tools/check_rosbags.py, datasets/ros-fixtures/).
+
+Retyped (fields only) from the packages' repositories:
+- ping360_sonar_msgs/msg/SonarEcho: CentraleNantesRobotics/ping360_sonar,
+  ping360_sonar_msgs/msg/SonarEcho.msg at fa53b8f.
+- marine_acoustic_msgs/msg/{RawSonarImage,PingInfo,SonarImageData,Dvl}:
+  apl-ocean-engineering/marine_msgs, marine_acoustic_msgs/msg/.
+- dvl_msgs/msg/{DVL,DVLBeam}: the Water Linked A50 ROS 2 driver's messages
+  (paagutie/dvl_msgs).
+- waterlinked_a50_ros_driver/msg/{DVL,DVLBeam}: waterlinked/dvl-a50-ros-driver,
+  msg/ at 15ad219 (ROS 1).
+"""
+
+from rosbags.typesys import get_types_from_msg
+
+DEFS = {
+    "ping360_sonar_msgs/msg/SonarEcho": """
+std_msgs/Header header
+float32 angle
+uint8 gain
+uint16 number_of_samples
+uint16 transmit_frequency
+uint16 speed_of_sound
+uint8 range
+uint8[] intensities
+""",
+    "marine_acoustic_msgs/msg/PingInfo": """
+float32 frequency
+float32 sound_speed
+float32[] tx_beamwidths
+float32[] rx_beamwidths
+""",
+    "marine_acoustic_msgs/msg/SonarImageData": """
+bool is_bigendian
+uint32 DTYPE_UINT8=0
+uint32 DTYPE_UINT16=2
+uint32 dtype
+uint32 beam_count
+uint8[] data
+""",
+    "marine_acoustic_msgs/msg/RawSonarImage": """
+std_msgs/Header header
+marine_acoustic_msgs/PingInfo ping_info
+float32 sample_rate
+uint32 samples_per_beam
+uint32 sample0
+float32[] tx_delays
+float32[] tx_angles
+float32[] rx_angles
+marine_acoustic_msgs/SonarImageData image
+""",
+    "marine_acoustic_msgs/msg/Dvl": """
+uint8 DVL_MODE_BOTTOM=1
+uint8 DVL_MODE_WATER=2
+uint8 DVL_TYPE_PISTON=0
+uint8 DVL_TYPE_PHASED_ARRAY=1
+std_msgs/Header header
+uint8 velocity_mode
+uint8 dvl_type
+geometry_msgs/Vector3 velocity
+float64[9] velocity_covar
+float64 altitude
+float64 course_gnd
+float64 speed_gnd
+uint8 num_good_beams
+float32 sound_speed
+bool beam_ranges_valid
+bool beam_velocities_valid
+geometry_msgs/Vector3[4] beam_unit_vec
+float64[4] range
+float32[4] range_covar
+float32[4] beam_quality
+float32[4] beam_velocity
+float32[4] beam_velocity_covar
+""",
+    "dvl_msgs/msg/DVLBeam": """
+int64 id
+float64 velocity
+float64 distance
+float64 rssi
+float64 nsd
+bool valid
+""",
+    "dvl_msgs/msg/DVL": """
+std_msgs/Header header
+float64 time
+geometry_msgs/Vector3 velocity
+float64 fom
+float64[] covariance
+float64 altitude
+dvl_msgs/DVLBeam[] beams
+bool velocity_valid
+int64 status
+int64 time_of_validity
+int64 time_of_transmission
+string form
+""",
+    "waterlinked_a50_ros_driver/msg/DVLBeam": """
+int64 id
+float64 velocity
+float64 distance
+float64 rssi
+float64 nsd
+bool valid
+""",
+    "waterlinked_a50_ros_driver/msg/DVL": """
+std_msgs/Header header
+float64 time
+geometry_msgs/Vector3 velocity
+float64 fom
+float64 altitude
+waterlinked_a50_ros_driver/DVLBeam[] beams
+bool velocity_valid
+int64 status
+string form
+""",
+}
+
+
+def register(store, echofield_msg=None):
+    """Registers every definition (and echofield_msgs/msg/SonarBeam from
+    the package's .msg file when given) in a rosbags type store."""
+    types = {}
+    for name, text in DEFS.items():
+        types.update(get_types_from_msg(text, name))
+    if echofield_msg is not None:
+        types.update(get_types_from_msg(open(echofield_msg).read(), "echofield_msgs/msg/SonarBeam"))
+    store.register(types)
