@@ -24,27 +24,34 @@ pub fn check_range(field: &str, value: f64, lo: f64, hi: f64) -> Result<(), Fron
     }
 }
 
-/// Checks a window's values, naming the axis: finite, `0 <= x_m, y_m <=`
+/// Checks a window's values, naming the element and its axis
+/// (`loops.min_window[2] (theta_rad)`): finite, `0 <= x_m, y_m <=`
 /// [`MAX_WINDOW_M`], `0 <= theta_rad <= π`.
 pub fn check_window(field: &str, window: &SearchWindow) -> Result<(), FrontendError> {
-    check_range(&format!("{field}.x_m"), window.x_m, 0.0, MAX_WINDOW_M)?;
-    check_range(&format!("{field}.y_m"), window.y_m, 0.0, MAX_WINDOW_M)?;
+    check_range(&axis_field(field, 0), window.x_m, 0.0, MAX_WINDOW_M)?;
+    check_range(&axis_field(field, 1), window.y_m, 0.0, MAX_WINDOW_M)?;
     check_range(
-        &format!("{field}.theta_rad"),
+        &axis_field(field, 2),
         window.theta_rad,
         0.0,
         std::f64::consts::PI,
     )
 }
 
+/// The name of element `i` of the window key `field`, with its axis.
+fn axis_field(field: &str, i: usize) -> String {
+    let axis = ["x_m", "y_m", "theta_rad"][i.min(2)];
+    format!("{field}[{i}] ({axis})")
+}
+
 /// Checks that `window` is positive on every axis (a search over a window
 /// of zero width finds nothing; a standard deviation of zero makes an
 /// information matrix infinite).
 pub fn check_positive_window(field: &str, window: &SearchWindow) -> Result<(), FrontendError> {
-    for (axis, value) in window.axes() {
+    for (i, (_, value)) in window.axes().into_iter().enumerate() {
         if value <= 0.0 {
             return Err(FrontendError::config(
-                format!("{field}.{axis}"),
+                axis_field(field, i),
                 format!("must be > 0, got {value}"),
             ));
         }
@@ -60,11 +67,14 @@ pub fn check_window_order(
     upper_field: &str,
     upper: &SearchWindow,
 ) -> Result<(), FrontendError> {
-    for ((axis, lo), (_, hi)) in lower.axes().into_iter().zip(upper.axes()) {
+    for (i, ((_, lo), (_, hi))) in lower.axes().into_iter().zip(upper.axes()).enumerate() {
         if lo > hi {
             return Err(FrontendError::config(
-                format!("{lower_field}.{axis}"),
-                format!("{lo} exceeds {upper_field}.{axis} = {hi}; it must not"),
+                axis_field(lower_field, i),
+                format!(
+                    "{lo} exceeds {} = {hi}; it must not",
+                    axis_field(upper_field, i)
+                ),
             ));
         }
     }

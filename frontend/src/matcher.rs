@@ -36,6 +36,7 @@ pub mod covariance;
 pub mod outcome;
 pub mod search;
 pub mod symmetric;
+pub mod window_key;
 
 pub use config::{MatcherConfig, SearchWindow};
 pub use outcome::{MatchOutcome, MatchQuality, MatchResult, MatchStats, NoMatchReason};

@@ -49,17 +49,17 @@ fn one_section_and_its_keys() {
     let loops = echofield(&["config", "--section", "loops"]);
     assert!(loops.status.success(), "{loops:?}");
     let text = String::from_utf8(loops.stdout).unwrap();
-    assert!(text.contains("[loops.max_window]"), "{text}");
+    assert!(text.contains("\nmax_window = ["), "{text}");
     assert_eq!(
         SlamConfig::from_toml_str(&text).unwrap(),
         SlamConfig::default()
     );
 
-    let keys = echofield(&["config", "--section", "loops.max_window", "--list-keys"]);
+    let keys = echofield(&["config", "--section", "image.pose_fit", "--list-keys"]);
     assert!(keys.status.success(), "{keys:?}");
     assert_eq!(
         String::from_utf8(keys.stdout).unwrap(),
-        "loops.max_window.theta_rad\nloops.max_window.x_m\nloops.max_window.y_m\n"
+        "image.pose_fit.enabled\nimage.pose_fit.off_axis_margin\nimage.pose_fit.range_smoothing_bins\n"
     );
 }
 

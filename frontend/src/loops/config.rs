@@ -34,6 +34,7 @@ pub struct LoopConfig {
     pub n_sigma: f64,
     /// Smallest search half-widths `[x_m, y_m, theta_rad]`. Default 0.5 m,
     /// 0.5 m, 3°.
+    #[serde(with = "crate::matcher::window_key")]
     pub min_window: Window,
     /// The largest search half-widths. A candidate whose window would
     /// exceed this on any axis is *deferred*: tried again when the graph
@@ -41,6 +42,7 @@ pub struct LoopConfig {
     /// reported as `deferred` if it never qualifies; except for the first
     /// `wide_searches_per_node` of them per node, which are searched over
     /// this window at once. Default 10 m, 10 m, 10°.
+    #[serde(with = "crate::matcher::window_key")]
     pub max_window: Window,
     /// When none of a node's candidates can be searched in a window within
     /// `max_window` (a first contact with a place seen long ago, when
@@ -79,10 +81,12 @@ pub struct LoopConfig {
     /// Matches whose standard deviation exceeds `[x_m, y_m, theta_rad]` on
     /// any axis, or whose covariance is not positive definite, are
     /// rejected (`covariance`). Default 0.5 m, 0.5 m, 3°.
+    #[serde(with = "crate::matcher::window_key")]
     pub max_sigma: Window,
     /// Smallest standard deviations of a loop edge `[x_m, y_m,
     /// theta_rad]` (the covariance of the score surface is inflated to at
     /// least these). Default 0.05 m, 0.05 m, 0.5°.
+    #[serde(with = "crate::matcher::window_key")]
     pub min_sigma: Window,
     /// A match that ends within this fraction of the window's half-width
     /// from its edge is rejected (`window_edge`): the true peak may lie
@@ -92,6 +96,7 @@ pub struct LoopConfig {
     /// inverse of the forward match to the nearest maximum, within this
     /// window `[x_m, y_m, theta_rad]`.
     /// Default 0.5 m, 0.5 m, 3°.
+    #[serde(with = "crate::matcher::window_key")]
     pub reverse_window: Window,
     /// The forward match and the inverse of the reverse match must agree
     /// to within this distance (m) ... Default 0.6. Two right matches of one
@@ -129,6 +134,7 @@ pub struct LoopConfig {
     /// (`n_sigma` standard deviations of the relative uncertainty) is
     /// within these half-widths `[x_m, y_m, theta_rad]`; it then climbs
     /// within `min_window` of the estimate. Default 2 m, 2 m, 6°.
+    #[serde(with = "crate::matcher::window_key")]
     pub densify_max_window: Window,
     /// Correlation `ρ` (0-1) assumed between the errors of loops that share
     /// a node, applied to densified loops: a densified loop `(j, k)` enters
@@ -142,6 +148,7 @@ pub struct LoopConfig {
     /// rejected (`covariance`). Default 0.35 m, 0.35 m, 3°: the marina's false
     /// positives are near misses from matches whose σ is a few decimetres along
     /// a quay (measured: EXPERIMENTS.md § Loop densification).
+    #[serde(with = "crate::matcher::window_key")]
     pub densify_max_sigma: Window,
     /// Partial loops: a densified match that fails `densify_max_sigma`
     /// along one horizontal direction only (its covariance's largest xy

@@ -180,8 +180,10 @@ pub struct SequentialConfig {
     pub n_sigma: f64,
     /// Smallest search half-widths `[x_m, y_m, theta_rad]`. Default
     /// 0.5 m, 0.5 m, 3°.
+    #[serde(with = "echofield_frontend::matcher::window_key")]
     pub min_window: Window,
     /// Largest search half-widths. Default 3 m, 3 m, 15°.
+    #[serde(with = "echofield_frontend::matcher::window_key")]
     pub max_window: Window,
     /// A match whose mean image intensity under the points
     /// (`MatchQuality::mean_intensity`, 0-1) is below this is not used.
@@ -197,6 +199,7 @@ pub struct SequentialConfig {
     /// surface's covariance does not include the errors of motion
     /// compensation, which grow with the dead-reckoning error inside a
     /// rotation). Default 0.1 m, 0.1 m, 0.75°.
+    #[serde(with = "echofield_frontend::matcher::window_key")]
     pub min_sigma: Window,
     /// Also match `S_{k-1}` against `I_k` (module `symmetric`): the edge
     /// then carries the mean of both matches, and is not added when they
@@ -205,6 +208,7 @@ pub struct SequentialConfig {
     pub symmetric: bool,
     /// Window of the reverse match around the inverse of the forward one.
     /// Default 0.5 m, 0.5 m, 3°.
+    #[serde(with = "echofield_frontend::matcher::window_key")]
     pub reverse_window: Window,
     /// Largest disagreement of the two matches, m. Default 0.75.
     pub reverse_max_translation_m: f64,
@@ -527,6 +531,30 @@ impl EvaluationConfig {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_window_is_one_key_and_its_old_table_form_says_what_replaces_it() {
+        let config = SlamConfig::from_toml_str("[loops]\nmax_window = [8, 8.5, 0.15]\n").unwrap();
+        assert_eq!(config.loops.max_window, Window::new(8.0, 8.5, 0.15));
+        assert_eq!(config.loops.min_window, LoopConfig::default().min_window);
+
+        let old = "[sequential.min_window]\nx_m = 0.4\ny_m = 0.4\ntheta_rad = 0.05\n";
+        let message = format!("{:#}", SlamConfig::from_toml_str(old).unwrap_err());
+        assert!(message.contains("sequential.min_window"), "{message}");
+        assert!(message.contains("[x_m, y_m, theta_rad]"), "{message}");
+        assert_eq!(
+            message.matches("sequential.min_window").count(),
+            1,
+            "{message}"
+        );
+
+        let bad = "[loops]\nmin_window = [0.5, 0.5, 4.0]\n";
+        let message = SlamConfig::from_toml_str(bad).unwrap_err().to_string();
+        assert!(
+            message.contains("loops.min_window[2] (theta_rad)"),
+            "{message}"
+        );
+    }
 
     #[test]
     fn heading_priors_follow_the_dead_reckonings_wandering_heading_error() {
