@@ -56,6 +56,7 @@
 mod finish;
 mod graph;
 mod navigation;
+mod solve_schedule;
 
 use super::config::SlamConfig;
 use super::nodes::{NodeData, Skip, build_node};

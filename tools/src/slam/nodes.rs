@@ -16,13 +16,14 @@ use super::SlamError;
 use super::config::SlamConfig;
 use echofield_frontend::FrontendError;
 use echofield_frontend::dead_reckoning::Navigation;
-use echofield_frontend::image::AcousticImage;
+use echofield_frontend::image::StoredImage;
 use echofield_frontend::motion::reference_from_beams;
 use echofield_frontend::rotation::Rotation;
 use echofield_frontend::scan::{Scan, build_scan};
 use echofield_frontend::sensors::{SensorMounting, SonarBeam};
 use echofield_graph::Se2;
 use std::ops::Range;
+use std::sync::Arc;
 
 /// Fraction of a scan's points whose range defines its footprint.
 const FOOTPRINT_QUANTILE: f64 = 0.9;
@@ -38,8 +39,9 @@ pub struct NodeData {
     pub dead_reckoning: Se2,
     /// `S_k` in the node's vehicle frame (empty with too few ranges).
     pub scan: Scan,
-    /// `I_k` in the node's vehicle frame.
-    pub image: AcousticImage,
+    /// `I_k` in the node's vehicle frame, kept with its beams so that it
+    /// can be released and built again (`ImageResidency`).
+    pub image: StoredImage,
     /// Range from the node origin within which `S_k` has 90% of its
     /// points, metres (0 for an empty scan): the area this node "sees".
     pub footprint_m: f64,
@@ -101,8 +103,12 @@ pub fn build_node(
         Err(FrontendError::TooFewRanges { .. }) => Scan::empty(rotation.reference_stamp_s),
         Err(e) => return Err(fatal(e)),
     };
-    let image =
-        AcousticImage::build(beams, &scan.image_frames(&frames), &config.image).map_err(fatal)?;
+    let image = StoredImage::build(
+        beams.to_vec(),
+        scan.image_frames(&frames),
+        Arc::new(config.image.clone()),
+    )
+    .map_err(fatal)?;
     let footprint_m = footprint(&scan);
     let in_dvl_gap = navigation
         .dvl_gaps()

@@ -108,14 +108,19 @@ fn match_one(
         record.rejected_by = Some(RejectReason::DvlGap);
         return Ok(record);
     }
+    let stage = || format!("sequential match {} -> {k}", k - 1);
+    let prev_image = prev
+        .image
+        .image()
+        .map_err(|e| SlamError::frontend(stage(), e))?;
     let outcome = match_scan(
         &node.scan.points,
-        &prev.image,
+        &prev_image,
         &prior,
         &window,
         &config.matcher,
     )
-    .map_err(|e| SlamError::frontend(format!("sequential match {} -> {k}", k - 1), e))?;
+    .map_err(|e| SlamError::frontend(stage(), e))?;
     let m = match outcome {
         MatchOutcome::Match(m) => m,
         MatchOutcome::NoMatch { reason } => {
@@ -148,10 +153,14 @@ fn match_one(
             max_translation_m: seq.reverse_max_translation_m,
             max_rotation_rad: seq.reverse_max_rotation_rad,
         };
+        let image = node
+            .image
+            .image()
+            .map_err(|e| SlamError::frontend(stage(), e))?;
         let (reverse, measurement) = reverse_match(
             &m,
             &prev.scan.points,
-            &node.image,
+            &image,
             &tolerance,
             &config.matcher,
             Search::Global,
