@@ -280,6 +280,37 @@ mod tests {
     }
 
     #[test]
+    fn a_released_old_image_still_matches_a_new_scan_as_before() {
+        use crate::image::synthetic::{RotationPath, simulate_rotation};
+        use crate::matcher::{MatcherConfig, SearchWindow, match_scan};
+        // An old rotation's image, and a scan of a later rotation 0.8 m on.
+        let scene = SceneConfig::default();
+        let (old, _) = stored();
+        let path = RotationPath::fixed(Se2::new(0.8, -0.3, 0.04));
+        let new = simulate_rotation(&scene, &path, 7);
+        let (prior, window) = (Se2::new(0.6, -0.1, 0.0), SearchWindow::new(1.0, 1.0, 0.1));
+        let config = MatcherConfig::default();
+        let run = |image: &AcousticImage| {
+            match_scan(&new.wall_points, image, &prior, &window, &config)
+                .unwrap()
+                .matched()
+                .cloned()
+                .expect("a match")
+        };
+        let resident = run(&old.image().unwrap());
+        assert!(old.release());
+        let rebuilt = run(&old.image().unwrap());
+        assert_eq!(old.rebuilds(), 1);
+        assert_eq!(rebuilt.image_from_scan, resident.image_from_scan);
+        assert_eq!(rebuilt.score, resident.score);
+        assert_eq!(rebuilt.covariance, resident.covariance);
+        // And the match is the right one: the new rotation is at
+        // (0.8, -0.3, 0.04) in the old one's frame.
+        let t = rebuilt.image_from_scan.translation();
+        assert!((t.x - 0.8).abs() < 0.1 && (t.y + 0.3).abs() < 0.1, "{t:?}");
+    }
+
+    #[test]
     fn concurrent_readers_of_a_released_image_share_one_build() {
         let (stored, _) = stored();
         stored.release();
