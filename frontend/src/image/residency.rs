@@ -67,21 +67,21 @@ impl ImageResidency {
         self.step += 1;
         self.seen.resize(n, (0, self.step));
         self.maybe_resident.resize(n, true);
-        for i in 0..n {
-            let reads = image(i).reads();
-            if reads != self.seen[i].0 {
-                self.seen[i] = (reads, self.step);
-                self.maybe_resident[i] = true;
-            }
-        }
+        let step = self.step;
         let mut held: Vec<(u64, usize, usize)> = Vec::new();
-        for i in 0..n.saturating_sub(1) {
-            if !self.maybe_resident[i] {
+        let states = self.seen.iter_mut().zip(&mut self.maybe_resident);
+        for (i, (seen, maybe_resident)) in states.enumerate() {
+            let reads = image(i).reads();
+            if reads != seen.0 {
+                *seen = (reads, step);
+                *maybe_resident = true;
+            }
+            if !*maybe_resident || i + 1 == n {
                 continue;
             }
             match image(i).resident_bytes() {
-                0 => self.maybe_resident[i] = false,
-                bytes => held.push((self.seen[i].1, i, bytes)),
+                0 => *maybe_resident = false,
+                bytes => held.push((seen.1, i, bytes)),
             }
         }
         let newest = n.checked_sub(1).map_or(0, |i| image(i).resident_bytes());

@@ -57,7 +57,8 @@ pub struct SlamOutput {
     /// like `nodes`; empty scans for rotations that gave too few ranges.
     pub scans: Vec<Scan>,
     /// `I_k` of each node (in the node's vehicle frame), indexed like
-    /// `nodes`.
+    /// `nodes`; on a long mission most are released (their beams kept):
+    /// [`StoredImage::image_once`] builds one for a look without keeping it.
     pub images: Vec<StoredImage>,
     /// The image configuration the images were built with.
     pub image_config: ImageConfig,

@@ -63,25 +63,24 @@ impl<'c> GraphState<'c> {
         let t = Instant::now();
         let incremental = self.config.backend.incremental;
         let (error, schedule) = (&mut self.incremental_error, &mut self.schedule);
-        let mut solve = |estimate: &mut Estimate| {
+        let mut optimise = |estimate: &mut Estimate| -> Result<(), SlamError> {
             // A failed incremental solve leaves the estimate as it was;
             // the final batch solve decides.
-            if let Err(e) = estimate.optimise_incremental() {
+            if incremental
+                && schedule.on_change(k)
+                && let Err(e) = estimate.optimise_incremental()
+            {
                 error.get_or_insert(e.to_string());
-            }
-        };
-        let mut optimise = |estimate: &mut Estimate| -> Result<(), SlamError> {
-            if incremental && schedule.on_change(k) {
-                solve(estimate);
             }
             Ok(())
         };
         self.closer
             .close_loops(k, &self.nodes, &mut self.estimate, &mut optimise)?;
-        if incremental && self.schedule.after_node(k) {
-            if let Err(e) = self.estimate.optimise_incremental() {
-                self.incremental_error.get_or_insert(e.to_string());
-            }
+        if incremental
+            && self.schedule.after_node(k)
+            && let Err(e) = self.estimate.optimise_incremental()
+        {
+            self.incremental_error.get_or_insert(e.to_string());
         }
         self.loops_s += t.elapsed().as_secs_f64();
         Ok(())

@@ -98,7 +98,7 @@ pub fn complete_results_mcap(
         .enumerate()
         .map_init(Vec::new, |pixels, (k, image)| {
             (!image.is_empty())
-                .then(|| image_png(&*image.image_once()?, pixels))
+                .then(|| image_png(&image.image_once()?, pixels))
                 .transpose()
                 .with_context(|| format!("acoustic image of node {k}"))
         })
