@@ -35,11 +35,15 @@ pub mod normalise;
 pub mod polar;
 pub mod pyramid;
 pub mod raster;
+pub mod residency;
+pub mod stored;
 pub mod synthetic;
 
 pub use grid::{CellValue, Grid, QuantisedGrid};
 pub use polar::PolarSamples;
 pub use pyramid::Pyramid;
+pub use residency::ImageResidency;
+pub use stored::{GridExtent, StoredImage};
 
 use crate::error::FrontendError;
 use crate::off_axis::OffAxisSuppression;

@@ -14,7 +14,7 @@
 
 use crate::dead_reckoning::Navigation;
 use crate::error::{FrontendError, StageError};
-use crate::image::{AcousticImage, ImageConfig};
+use crate::image::{ImageConfig, StoredImage};
 use crate::motion::reference_from_beams;
 use crate::rotation::Rotation;
 use crate::scan::{Scan, build_scan};
@@ -22,6 +22,7 @@ use crate::segmentation::SegmentationConfig;
 use crate::sensors::{SensorMounting, SonarBeam};
 use echofield_graph::Se2;
 use std::ops::Range;
+use std::sync::Arc;
 
 /// Fraction of a scan's points whose range defines its footprint.
 const FOOTPRINT_QUANTILE: f64 = 0.9;
@@ -37,8 +38,9 @@ pub struct NodeData {
     pub dead_reckoning: Se2,
     /// `S_k` in the node's vehicle frame (empty with too few ranges).
     pub scan: Scan,
-    /// `I_k` in the node's vehicle frame.
-    pub image: AcousticImage,
+    /// `I_k` in the node's vehicle frame, kept with its beams so that it
+    /// can be released and built again (`ImageResidency`).
+    pub image: StoredImage,
     /// Range from the node origin within which `S_k` has 90% of its
     /// points, metres (0 for an empty scan): the area this node "sees".
     pub footprint_m: f64,
@@ -96,7 +98,12 @@ pub fn build_node(
         Err(FrontendError::TooFewRanges { .. }) => Scan::empty(rotation.reference_stamp_s),
         Err(e) => return Err(fatal(e)),
     };
-    let image = AcousticImage::build(beams, &scan.image_frames(&frames), image).map_err(fatal)?;
+    let image = StoredImage::build(
+        beams.to_vec(),
+        scan.image_frames(&frames),
+        Arc::new(image.clone()),
+    )
+    .map_err(fatal)?;
     let footprint_m = footprint(&scan);
     let in_dvl_gap = navigation
         .dvl_gaps()

@@ -364,7 +364,8 @@ fn mission_mcap_holds_poses_scans_and_images_for_foxglove() {
         .unwrap();
     let decoded = image::load_from_memory(&png).unwrap();
     let k = f.output.images.iter().position(|i| !i.is_empty()).unwrap();
-    let grid = f.output.images[k].grid();
+    let image = f.output.images[k].image_once().unwrap();
+    let grid = image.grid();
     // One pixel per 2 x 2 cells.
     assert_eq!(
         (decoded.width() as usize, decoded.height() as usize),

@@ -141,6 +141,7 @@ pub fn examine(
         return Ok(record);
     }
     let stage = || format!("loop match {} -> {}", candidate.from, candidate.to);
+    let old_image = old.image.image().map_err(|e| StageError::new(stage(), e))?;
     let matcher_fn = if candidate.densify {
         match_scan_local
     } else {
@@ -149,7 +150,7 @@ pub fn examine(
     let search = |window: &SearchWindow| {
         matcher_fn(
             &new.scan.points,
-            &old.image,
+            &old_image,
             &candidate.prior,
             window,
             matcher,
@@ -208,10 +209,11 @@ pub fn examine(
         max_translation_m: config.reverse_max_translation_m,
         max_rotation_rad: config.reverse_max_rotation_rad,
     };
+    let new_image = new.image.image().map_err(|e| StageError::new(stage(), e))?;
     let (reverse, measurement) = reverse_match(
         &m,
         &old.scan.points,
-        &new.image,
+        &new_image,
         &tolerance,
         matcher,
         Search::Local,

@@ -188,7 +188,9 @@ pub struct LoopConfig {
     /// distance along the track of `j` to one within it of `k`. It bounds
     /// the loops per metre of track, so that slower vehicles (more
     /// rotations per place) and long missions do not match every pair of
-    /// every revisit. 0 keeps every pair. Default 0: the recall over node
+    /// every revisit; with it, densification also takes at most
+    /// `3 · max_candidates_per_node` pairs per node. 0 keeps every pair.
+    /// Default 0: the recall over node
     /// pairs that the evaluation reports (and the St Pere replay's tests
     /// require) counts every overlapping pair; long or slow missions set
     /// about 2 m (`echofield bench-long` uses `--cover-spacing-m`).

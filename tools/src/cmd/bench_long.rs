@@ -29,8 +29,9 @@ Each mission is written to OUTPUT as
 marina-<speed>.mcap and run by `echofield run`'s pipeline in a child
 process (outputs in OUTPUT/run-<speed>), whose peak resident memory
 (VmHWM, Linux) and wall time, reading and writing included, are reported
-with the run's loop candidates, accepted loops and ATE (dead reckoning's
-in brackets). The last line compares the largest mission's time with the
+with the run's loop candidates, accepted loops, node images built again
+after the memory budget released them, and ATE (dead reckoning's in
+brackets). The last line compares the largest mission's time with the
 smallest's.";
 
 #[derive(Debug, clap::Args)]
@@ -64,6 +65,7 @@ struct Row {
     rotations: usize,
     candidates: usize,
     accepted: usize,
+    rebuilt: usize,
     time_s: f64,
     peak_mb: Option<f64>,
     ate_m: Option<f64>,
@@ -86,9 +88,9 @@ pub fn run(args: Args) -> Result<()> {
         .with_context(|| format!("cannot create folder {}", args.output.display()))?;
     let mut rows = Vec::new();
     println!(
-        "| cruise speed (m/s) | rotations | loop candidates | loops accepted | time (s) | peak memory (MB) | ATE (DR) (m) |"
+        "| cruise speed (m/s) | rotations | loop candidates | loops accepted | images rebuilt | time (s) | peak memory (MB) | ATE (DR) (m) |"
     );
-    println!("|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|");
     for &speed in &args.speeds {
         let mission = args.output.join(format!("marina-{speed}.mcap"));
         simulate(speed, args.seed, &mission)?;
@@ -97,11 +99,12 @@ pub fn run(args: Args) -> Result<()> {
             v.map_or_else(|| "n/a".to_string(), |v| format!("{v:.digits$}"))
         };
         println!(
-            "| {} | {} | {} | {} | {:.1} | {} | {} ({}) |",
+            "| {} | {} | {} | {} | {} | {:.1} | {} | {} ({}) |",
             row.speed_mps,
             row.rotations,
             row.candidates,
             row.accepted,
+            row.rebuilt,
             row.time_s,
             show(row.peak_mb, 0),
             show(row.ate_m, 3),
@@ -175,6 +178,7 @@ fn measure(speed_mps: f64, mission: &Path, args: &Args) -> Result<Row> {
         rotations: count("rotations"),
         candidates: count("loop_candidates"),
         accepted: count("loops_accepted"),
+        rebuilt: count("images_rebuilt"),
         time_s,
         peak_mb,
         ate_m: report["ate_rmse_m"].as_f64(),

@@ -178,7 +178,12 @@ pub fn build_prior_map(
             mission.name
         );
     }
-    let images: Vec<_> = nodes.iter().map(|(n, p)| (n.image.grid(), *p)).collect();
+    // Freshly built nodes hold their images: reading them rebuilds nothing.
+    let resident = nodes
+        .iter()
+        .map(|(n, p)| Ok((n.image.image()?, *p)))
+        .collect::<Result<Vec<_>, echofield_frontend::FrontendError>>()?;
+    let images: Vec<_> = resident.iter().map(|(i, p)| (i.grid(), *p)).collect();
     let mosaic = build_mosaic(
         &images,
         &MosaicConfig {

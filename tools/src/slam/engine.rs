@@ -56,6 +56,7 @@
 mod finish;
 mod graph;
 mod navigation;
+mod solve_schedule;
 
 use super::SlamError;
 use super::config::SlamConfig;

@@ -54,7 +54,13 @@
 //!    or within `cover_spacing_m` of travel of it). Densification, too,
 //!    skips covered pairs: it matches in rounds the pairs that neither an
 //!    accepted loop nor an earlier pick of the round covers
-//!    ([`COVER_ROUNDS`]).
+//!    ([`COVER_ROUNDS`]), and takes at most `3 · max_candidates_per_node`
+//!    pairs per node, the best-overlapping ones.
+//!
+//! Node images are read through their [`ImageResidency`], which keeps the
+//! images held within a memory budget between matches (densification
+//! runs in batches of [`DENSIFY_BATCH`] pairs for it); a released image is
+//! built again, the same, when read.
 //!
 //! The matches of step 3 (a node's candidates, the retried ones, and the
 //! whole densification pass) run in parallel with rayon; their records
@@ -69,6 +75,7 @@ use super::estimate::{Estimate, make_edge};
 use checks::{Candidate, examine};
 use consistency::{Clique, ConsistencyGraph, DeadReckoningChain, LoopMeasurement};
 use cover::LoopCover;
+use echofield_frontend::image::ImageResidency;
 use echofield_frontend::loops::{LoopRecord, RejectReason};
 use echofield_frontend::matcher::{MatcherConfig, SearchWindow};
 use echofield_frontend::nodes::{NodeData, predicted_overlap};
@@ -94,6 +101,27 @@ const MAX_WAITING: usize = 64;
 /// the round covers; the next one picks among the pairs only failed picks
 /// covered.
 pub const COVER_ROUNDS: usize = 3;
+/// Densification pairs matched between two looks of the image residency
+/// policy: bounds the images a batch builds beyond the budget.
+const DENSIFY_BATCH: usize = 64;
+
+/// Keeps the `max` pairs of `pairs` (older node, predicted overlap) with
+/// the largest overlap (ties: the older node), in their order. With the
+/// cover rule on, it bounds the densification matches per node: on a slow
+/// or long mission a node overlaps every node of every earlier pass over
+/// its place, far more pairs than add information (module doc of
+/// [`cover`]). Off with the rule off: on the St Pere replay it costs a
+/// third of the pairs the evaluation counts (EXPERIMENTS.md § Long
+/// missions).
+fn keep_best_overlaps(pairs: &mut Vec<(usize, f64)>, max: usize) {
+    if pairs.len() <= max {
+        return;
+    }
+    let mut ranked: Vec<(usize, f64)> = pairs.clone();
+    ranked.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
+    let kept: HashSet<usize> = ranked.iter().take(max).map(|p| p.0).collect();
+    pairs.retain(|p| kept.contains(&p.0));
+}
 
 /// The loop-closing state of a run.
 pub struct LoopCloser<'a> {
@@ -121,6 +149,8 @@ pub struct LoopCloser<'a> {
     pub wide_searches: usize,
     /// The accepted loops (clique and densified), for the cover rule.
     cover: LoopCover,
+    /// Which nodes' images stay in memory between matches.
+    pub residency: ImageResidency,
 }
 
 impl<'a> LoopCloser<'a> {
@@ -148,6 +178,7 @@ impl<'a> LoopCloser<'a> {
             validation_time_s: 0.0,
             wide_searches: 0,
             cover: LoopCover::new(config.cover_spacing_m),
+            residency: ImageResidency::default(),
         }
     }
 
@@ -161,6 +192,7 @@ impl<'a> LoopCloser<'a> {
         estimate: &mut Estimate,
         optimise: &mut dyn FnMut(&mut Estimate) -> Result<(), SlamError>,
     ) -> Result<(), SlamError> {
+        self.residency.enforce(nodes.len(), |i| &nodes[i].image);
         if !self.config.enabled || k < self.config.min_separation_nodes {
             return Ok(());
         }
@@ -288,8 +320,14 @@ impl<'a> LoopCloser<'a> {
             if !nodes[k].matchable() {
                 continue;
             }
-            let pairs =
+            let mut pairs =
                 self.overlapping(k, nodes, poses, self.config.densify_min_predicted_overlap);
+            if self.cover.enabled() {
+                keep_best_overlaps(
+                    &mut pairs,
+                    CANDIDATE_POOL * self.config.max_candidates_per_node,
+                );
+            }
             if pairs.is_empty() {
                 continue;
             }
@@ -340,7 +378,11 @@ impl<'a> LoopCloser<'a> {
         for c in &candidates {
             self.examined.insert((c.from, c.to));
         }
-        let records = self.examine_all(&candidates.iter().collect::<Vec<_>>(), k, nodes)?;
+        let mut records = Vec::with_capacity(candidates.len());
+        for batch in candidates.chunks(DENSIFY_BATCH) {
+            records.extend(self.examine_all(&batch.iter().collect::<Vec<_>>(), k, nodes)?);
+            self.residency.enforce(nodes.len(), |i| &nodes[i].image);
+        }
         for (c, mut record) in candidates.into_iter().zip(records) {
             let id = self.records.len();
             if record.rejected_by.is_none()
@@ -777,6 +819,21 @@ pub fn loop_metadata(record: &LoopRecord) -> Option<serde_json::Value> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn densification_keeps_the_best_overlapping_pairs_of_a_node_in_order() {
+        let mut pairs = vec![(3, 0.5), (7, 0.9), (8, 0.45), (12, 0.9), (20, 0.6)];
+        keep_best_overlaps(&mut pairs, 3);
+        // 0.9, 0.9 and 0.6 stay, in node order.
+        assert_eq!(pairs, [(7, 0.9), (12, 0.9), (20, 0.6)]);
+        // Equal overlaps: the older node first.
+        let mut pairs = vec![(5, 0.7), (2, 0.7), (9, 0.7)];
+        keep_best_overlaps(&mut pairs, 2);
+        assert_eq!(pairs, [(5, 0.7), (2, 0.7)]);
+        let mut few = vec![(1, 0.4)];
+        keep_best_overlaps(&mut few, 2);
+        assert_eq!(few, [(1, 0.4)]);
+    }
 
     fn measurement(id: usize, from: usize, to: usize) -> LoopMeasurement {
         LoopMeasurement {

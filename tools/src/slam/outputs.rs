@@ -56,7 +56,7 @@ use echofield_frontend::sensors::Mission;
 use echofield_graph::Se2;
 use echofield_graph::io::{TrajectoryPose, write_csv, write_g2o, write_kitti, write_tum};
 use loops_csv::{LoopRow, write_loops_csv};
-use mosaic::{MosaicConfig, build_mosaic, mosaic_png, world_file};
+use mosaic::{MosaicCanvas, MosaicConfig, mosaic_png, world_file};
 use nalgebra::Vector2;
 use std::path::Path;
 use std::time::Instant;
@@ -346,14 +346,40 @@ fn loop_segments(loops: &[LoopRow], optimised: &[Se2]) -> Vec<LoopSegment> {
         .collect()
 }
 
+/// Images built at once for the mosaic (in parallel), then placed and
+/// dropped: bounds the memory of the output of a long mission, whose
+/// images are mostly released ([`echofield_frontend::image::residency`]).
+const MOSAIC_BATCH: usize = 16;
+
 /// The mosaic's world grid: every node's `I_k` at its optimised pose.
 pub fn mosaic_grid(output: &SlamOutput) -> Result<Grid> {
-    let images: Vec<(&Grid, Se2)> = output
+    use rayon::prelude::*;
+    let placed: Vec<(usize, Se2)> = output
         .nodes
         .iter()
         .zip(&output.images)
-        .filter(|(_, image)| !image.is_empty())
-        .map(|(node, image)| (image.grid(), node.optimised))
+        .enumerate()
+        .filter(|(_, (node, image))| {
+            !image.is_empty() && mosaic::placeable(&image.extent(), &node.optimised)
+        })
+        .map(|(k, (node, _))| (k, node.optimised))
         .collect();
-    build_mosaic(&images, &MosaicConfig::default())
+    let extents = placed
+        .iter()
+        .map(|&(k, pose)| (output.images[k].extent(), pose));
+    let mut canvas = MosaicCanvas::new(extents, &MosaicConfig::default())?;
+    for batch in placed.chunks(MOSAIC_BATCH) {
+        let images = batch
+            .par_iter()
+            .map(|&(k, _)| {
+                output.images[k]
+                    .image_once()
+                    .with_context(|| format!("acoustic image of node {k}"))
+            })
+            .collect::<Vec<_>>();
+        for (&(_, pose), image) in batch.iter().zip(images) {
+            canvas.place(image?.grid(), &pose);
+        }
+    }
+    Ok(canvas.finish())
 }

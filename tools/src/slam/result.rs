@@ -15,7 +15,7 @@ use super::odometry_scale::OdometryScale;
 use crate::eval::{AteStats, RpeStats};
 use echofield_backend::SolveSummary;
 use echofield_frontend::dead_reckoning::gyro_check::YawRateCheck;
-use echofield_frontend::image::{AcousticImage, ImageConfig};
+use echofield_frontend::image::{ImageConfig, StoredImage};
 use echofield_frontend::intensity::IntensityKind;
 use echofield_frontend::scan::Scan;
 use echofield_frontend::sensors::SensorMounting;
@@ -54,8 +54,9 @@ pub struct SlamOutput {
     /// like `nodes`; empty scans for rotations that gave too few ranges.
     pub scans: Vec<Scan>,
     /// `I_k` of each node (in the node's vehicle frame), indexed like
-    /// `nodes`.
-    pub images: Vec<AcousticImage>,
+    /// `nodes`; on a long mission most are released (their beams kept):
+    /// [`StoredImage::image_once`] builds one for a look without keeping it.
+    pub images: Vec<StoredImage>,
     /// The image configuration the images were built with.
     pub image_config: ImageConfig,
 }
@@ -348,6 +349,9 @@ pub struct Report {
     pub loop_wide_searches: usize,
     /// Scan matches run in all (sequential, loop, reverse).
     pub matches_run: usize,
+    /// Node images built again after the residency budget released them
+    /// (`echofield_frontend::image::residency`; outputs not counted).
+    pub images_rebuilt: usize,
     pub loops_accepted: usize,
     /// Candidates of the densification pass (`loops.densify`; included in
     /// `loop_candidates`) and those accepted (included in `loops_accepted`).

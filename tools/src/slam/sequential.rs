@@ -105,8 +105,13 @@ fn match_one(
         record.rejected_by = Some(RejectReason::DvlGap);
         return Ok(record);
     }
-    let outcome = match_scan(&node.scan.points, &prev.image, &prior, &window, matcher)
-        .map_err(|e| SlamError::frontend(format!("sequential match {} -> {k}", k - 1), e))?;
+    let stage = || format!("sequential match {} -> {k}", k - 1);
+    let prev_image = prev
+        .image
+        .image()
+        .map_err(|e| SlamError::frontend(stage(), e))?;
+    let outcome = match_scan(&node.scan.points, &prev_image, &prior, &window, matcher)
+        .map_err(|e| SlamError::frontend(stage(), e))?;
     let m = match outcome {
         MatchOutcome::Match(m) => m,
         MatchOutcome::NoMatch { reason } => {
@@ -139,10 +144,14 @@ fn match_one(
             max_translation_m: seq.reverse_max_translation_m,
             max_rotation_rad: seq.reverse_max_rotation_rad,
         };
+        let image = node
+            .image
+            .image()
+            .map_err(|e| SlamError::frontend(stage(), e))?;
         let (reverse, measurement) = reverse_match(
             &m,
             &prev.scan.points,
-            &node.image,
+            &image,
             &tolerance,
             matcher,
             Search::Global,

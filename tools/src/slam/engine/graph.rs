@@ -2,6 +2,7 @@
 //! odometry and sequential edges, its loop closures, and the incremental
 //! solves they trigger.
 
+use super::solve_schedule::SolveSchedule;
 use crate::slam::config::SlamConfig;
 use crate::slam::estimate::Estimate;
 use crate::slam::loops::LoopCloser;
@@ -27,6 +28,8 @@ pub(super) struct GraphState<'c> {
     pub sequential_s: f64,
     /// Time spent in `close_loops`, s (matches, validation, solves).
     pub loops_s: f64,
+    /// When the incremental solves run ([`super::solve_schedule`]).
+    schedule: SolveSchedule,
 }
 
 impl<'c> GraphState<'c> {
@@ -40,6 +43,7 @@ impl<'c> GraphState<'c> {
             incremental_error: None,
             sequential_s: 0.0,
             loops_s: 0.0,
+            schedule: SolveSchedule::default(),
         })
     }
 
@@ -64,19 +68,26 @@ impl<'c> GraphState<'c> {
         self.add_chain(k, navigation)?;
         let t = Instant::now();
         let incremental = self.config.backend.incremental;
-        let error = &mut self.incremental_error;
+        let (error, schedule) = (&mut self.incremental_error, &mut self.schedule);
         let mut optimise = |estimate: &mut Estimate| -> Result<(), SlamError> {
-            if incremental {
-                // A failed incremental solve leaves the estimate as it was;
-                // the final batch solve decides.
-                if let Err(e) = estimate.optimise_incremental() {
-                    error.get_or_insert(e.to_string());
-                }
+            // A failed incremental solve leaves the estimate as it was;
+            // the final batch solve decides.
+            if incremental
+                && schedule.on_change(k)
+                && let Err(e) = estimate.optimise_incremental()
+            {
+                error.get_or_insert(e.to_string());
             }
             Ok(())
         };
         self.closer
             .close_loops(k, &self.nodes, &mut self.estimate, &mut optimise)?;
+        if incremental
+            && self.schedule.after_node(k)
+            && let Err(e) = self.estimate.optimise_incremental()
+        {
+            self.incremental_error.get_or_insert(e.to_string());
+        }
         self.loops_s += t.elapsed().as_secs_f64();
         Ok(())
     }

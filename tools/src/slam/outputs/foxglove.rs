@@ -127,7 +127,10 @@ pub fn complete_results_mcap(
         .enumerate()
         .map_init(Vec::new, |pixels, (k, image)| {
             (!image.is_empty())
-                .then(|| image_png(image, pixels))
+                .then(|| {
+                    let image = image.image_once()?;
+                    image_png(&image, pixels)
+                })
                 .transpose()
                 .with_context(|| format!("acoustic image of node {k}"))
         })

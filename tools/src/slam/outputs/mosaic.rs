@@ -20,7 +20,7 @@
 
 use crate::plots::{FONT, draw_over, encode_png, plot_error};
 use anyhow::{Result, bail};
-use echofield_frontend::image::Grid;
+use echofield_frontend::image::{Grid, GridExtent};
 use echofield_graph::Se2;
 use image::ExtendedColorType;
 use plotters::prelude::*;
@@ -69,15 +69,21 @@ impl Default for MosaicConfig {
     }
 }
 
-/// The world-frame corners of `image` placed by `world_from_image`.
-fn corners(image: &Grid, world_from_image: &Se2) -> [(f64, f64); 4] {
-    let (gx, gy) = image.origin_m();
+/// The world-frame corners of a raster of `extent` placed by
+/// `world_from_image`.
+fn corners(extent: &GridExtent, world_from_image: &Se2) -> [(f64, f64); 4] {
+    let (gx, gy) = extent.origin_m;
     let (w, h) = (
-        image.width() as f64 * image.cell_size_m(),
-        image.height() as f64 * image.cell_size_m(),
+        extent.width as f64 * extent.cell_size_m,
+        extent.height as f64 * extent.cell_size_m,
     );
     [(gx, gy), (gx + w, gy), (gx, gy + h), (gx + w, gy + h)]
         .map(|(x, y)| world_from_image.transform_xy(x, y))
+}
+
+/// Whether an image of `extent` at `pose` is placed in the mosaic.
+pub fn placeable(extent: &GridExtent, pose: &Se2) -> bool {
+    extent.width > 0 && extent.height > 0 && pose.is_finite()
 }
 
 /// Places `images` (each with its `world_from_image` pose) in one world
@@ -85,53 +91,93 @@ fn corners(image: &Grid, world_from_image: &Se2) -> [(f64, f64); 4] {
 pub fn build_mosaic(images: &[(&Grid, Se2)], config: &MosaicConfig) -> Result<Grid> {
     let placed: Vec<&(&Grid, Se2)> = images
         .iter()
-        .filter(|(g, pose)| g.width() > 0 && g.height() > 0 && pose.is_finite())
+        .filter(|(g, pose)| placeable(&GridExtent::of(g), pose))
         .collect();
-    let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
-    for (image, pose) in &placed {
-        for (x, y) in corners(image, pose) {
-            x0 = x0.min(x);
-            y0 = y0.min(y);
-            x1 = x1.max(x);
-            y1 = y1.max(y);
-        }
-    }
-    if placed.is_empty() {
-        bail!("no node has an acoustic image to place in the mosaic");
-    }
-    let longest_m = (x1 - x0).max(y1 - y0);
-    let cell = config
-        .min_cell_size_m
-        .max(longest_m / config.max_side_px.max(1) as f64);
-    let width = ((x1 - x0) / cell).ceil() as usize + 1;
-    let height = ((y1 - y0) / cell).ceil() as usize + 1;
-    let mut world = Grid::zeros(x0, y0, cell, width, height);
-    let mut counts = match config.blend {
-        MosaicBlend::Mean => vec![0u16; width * height],
-        MosaicBlend::Max => Vec::new(),
-    };
+    let mut canvas = MosaicCanvas::new(
+        placed.iter().map(|(g, pose)| (GridExtent::of(g), *pose)),
+        config,
+    )?;
     for (image, pose) in placed {
-        place_image(
-            &mut world,
-            &mut counts,
-            image,
-            pose,
-            config.floor,
-            config.blend,
-        );
+        canvas.place(image, pose);
     }
-    if config.blend == MosaicBlend::Mean {
-        for (v, &n) in world.values_mut().iter_mut().zip(&counts) {
-            if n > 0 {
-                *v /= f32::from(n);
+    Ok(canvas.finish())
+}
+
+/// A mosaic being built image by image, so that the images need not be
+/// held at once: sized by the extents of every image to come, then each
+/// placed, then cropped.
+pub struct MosaicCanvas {
+    world: Grid,
+    counts: Vec<u16>,
+    config: MosaicConfig,
+}
+
+impl MosaicCanvas {
+    /// The world grid covering every image of `extents` at its pose
+    /// (images [`placeable`] only). Errors: no image.
+    pub fn new(
+        extents: impl IntoIterator<Item = (GridExtent, Se2)>,
+        config: &MosaicConfig,
+    ) -> Result<Self> {
+        let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
+        let mut any = false;
+        for (extent, pose) in extents {
+            any = true;
+            for (x, y) in corners(&extent, &pose) {
+                x0 = x0.min(x);
+                y0 = y0.min(y);
+                x1 = x1.max(x);
+                y1 = y1.max(y);
             }
         }
+        if !any {
+            bail!("no node has an acoustic image to place in the mosaic");
+        }
+        let longest_m = (x1 - x0).max(y1 - y0);
+        let cell = config
+            .min_cell_size_m
+            .max(longest_m / config.max_side_px.max(1) as f64);
+        let width = ((x1 - x0) / cell).ceil() as usize + 1;
+        let height = ((y1 - y0) / cell).ceil() as usize + 1;
+        let counts = match config.blend {
+            MosaicBlend::Mean => vec![0u16; width * height],
+            MosaicBlend::Max => Vec::new(),
+        };
+        Ok(Self {
+            world: Grid::zeros(x0, y0, cell, width, height),
+            counts,
+            config: config.clone(),
+        })
     }
-    Ok(crop_to_echoes(
-        &world,
-        config.crop_level,
-        config.crop_margin_m,
-    ))
+
+    /// Blends `image` placed by `world_from_image` (one of the extents
+    /// the canvas was sized for).
+    pub fn place(&mut self, image: &Grid, world_from_image: &Se2) {
+        place_image(
+            &mut self.world,
+            &mut self.counts,
+            image,
+            world_from_image,
+            self.config.floor,
+            self.config.blend,
+        );
+    }
+
+    /// The mosaic, cropped to the echoes.
+    pub fn finish(mut self) -> Grid {
+        if self.config.blend == MosaicBlend::Mean {
+            for (v, &n) in self.world.values_mut().iter_mut().zip(&self.counts) {
+                if n > 0 {
+                    *v /= f32::from(n);
+                }
+            }
+        }
+        crop_to_echoes(
+            &self.world,
+            self.config.crop_level,
+            self.config.crop_margin_m,
+        )
+    }
 }
 
 /// Blends `image`, placed by `world_from_image`, into `world`. Every image

@@ -77,6 +77,7 @@ impl SlamEngine<'_> {
                 .count(),
             loop_wide_searches: closer.wide_searches,
             matches_run: closer.matches + sequential_matches_run(&sequential),
+            images_rebuilt: nodes.iter().map(|n| n.image.rebuilds()).sum(),
             loops_accepted: loops.iter().filter(|l| l.accepted).count(),
             loop_densified_candidates: loops.iter().filter(|l| l.densified).count(),
             loops_densified: loops.iter().filter(|l| l.densified && l.accepted).count(),
