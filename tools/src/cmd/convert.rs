@@ -37,7 +37,7 @@ Examples:
   echofield convert ros mission.bag --topic sonar=/sonar_micron_ros --topic heading=/imu/data \\
     --output mission.mcap
 
-Read types (see `echofield run --help`): sonar ping360_sonar_msgs/SonarEcho,
+Read types: sonar ping360_sonar_msgs/SonarEcho,
 marine_acoustic_msgs/RawSonarImage, sensor_msgs/LaserScan, echofield_msgs/SonarBeam;
 DVL marine_acoustic_msgs/Dvl, dvl_msgs/DVL, waterlinked_a50_ros_driver/DVL,
 geometry_msgs/TwistWithCovarianceStamped, nav_msgs/Odometry (its twist, when chosen);

@@ -76,8 +76,8 @@ ground truth).";
 pub struct Args {
     /// The mission: an MCAP file (echofield's or a ROS 2 recording), a
     /// rosbag2 folder (MCAP or sqlite3 storage), a ROS 1 bag, or a St Pere
-    /// log folder. ROS recordings: standard messages (`echofield convert
-    /// ros --help` lists them), the sonar mounting from /tf_static.
+    /// log folder. ROS recordings: standard messages (the help of
+    /// convert ros lists them), the sonar mounting from /tf_static.
     pub mission: PathBuf,
     /// ROS input: the topic that feeds a stream, as ROLE=/name (roles:
     /// sonar, dvl, heading, ground_truth); repeat for several. A stream
