@@ -5,6 +5,9 @@
 //! The schema texts are echofield's own JSON Schemas of the Foxglove message
 //! definitions (<https://docs.foxglove.dev/docs/visualization/message-schemas>):
 //! the same field names and types, without Foxglove's optional tracking fields.
+//! Written here rather than taken from the `foxglove` crate (Foxglove's SDK)
+//! because that brings its own MCAP writer, channels and live server for what
+//! is, here, seven JSON messages on echofield's one MCAP writer.
 //! echofield is planar: every pose gets z = 0 and a rotation about z only.
 //! Timestamps are `{sec, nsec}` taken from the message's log time
 //! (`stamp_s` rounded to the nanosecond).
