@@ -1,0 +1,142 @@
+//! Monte Carlo localisation on a prior acoustic map of REAL sonar (issue
+//! 38, item 2): the St Pere MiniKing point sets of `datasets/`, the
+//! mounting found by `calibrate` (not set by hand). Rotations 1-60 are
+//! run as a SLAM mission and their node images become the map; rotations
+//! 61-115 are a second mission localised on it from an unknown start.
+//!
+//! The errors are computed here from the filter's estimates and the
+//! mission's DGPS, not read from the report: the map frame is moved into
+//! the DGPS frame by the map run's nodes fitted onto their DGPS fixes (the
+//! localised estimates themselves are not fitted). The dead-reckoning
+//! baseline is the second half's own forward dead reckoning, fitted onto
+//! the DGPS, as the report gives it. Figures and the command that
+//! reproduces them: EXPERIMENTS.md § Localisation on a prior map.
+
+use echofield::calibration::{CalibrateSettings, calibrate_mission};
+use echofield::eval::align_se2;
+use echofield::localize::report::truth_at;
+use echofield::localize::{build_prior_map, build_report, localize};
+use echofield::slam::{NoProgress, SlamConfig, run_mission};
+use echofield_frontend::localization::{LocalizationConfig, LocalizationState};
+use echofield_frontend::sensors::{Mission, SweepTiming};
+use echofield_graph::io::TrajectoryPose;
+use echofield_tests::{datasets_dir, stpere_point_set_mission};
+
+/// Begin time (Unix s) of point-set rotation `k` (1-based), from the
+/// committed `keyFrameTimeStamps.csv` (`keyFrame,keyFrameBeginning,keyFrameEnd`).
+fn rotation_begin_s(k: u32) -> f64 {
+    let path = datasets_dir().join("stpere-marina-sonar/keyFrameTimeStamps.csv");
+    let text = std::fs::read_to_string(&path).unwrap();
+    text.lines()
+        .skip(1)
+        .map(|l| l.split(',').map(str::trim).collect::<Vec<_>>())
+        .find(|f| f[0].parse::<u32>().ok() == Some(k))
+        .map(|f| f[1].parse::<f64>().unwrap())
+        .unwrap_or_else(|| panic!("rotation {k} in {}", path.display()))
+}
+
+/// The records of `mission` with stamps in `[from_s, to_s)`.
+fn between(mission: &Mission, from_s: f64, to_s: f64) -> Mission {
+    let inside = |t: f64| t >= from_s && t < to_s;
+    let mut m = mission.clone();
+    m.beams.retain(|b| inside(b.stamp_s));
+    m.dvl.retain(|d| inside(d.stamp_s));
+    m.attitude.retain(|a| inside(a.stamp_s));
+    m.ground_truth.retain(|g| inside(g.stamp_s));
+    m
+}
+
+#[test]
+fn the_second_half_of_real_st_pere_localises_on_the_first_halfs_map() {
+    let whole = stpere_point_set_mission(Some(SweepTiming::AngleIncreasing));
+    let calibration = calibrate_mission(&whole, &CalibrateSettings::default()).unwrap();
+    let config = SlamConfig {
+        mounting: calibration.mounting_config(),
+        ..SlamConfig::default()
+    };
+    // Half a beam period (68 ms) before the stamp: the begin time equals
+    // the first beam's stamp only to 1 ms.
+    let split_s = rotation_begin_s(61) - 0.034;
+    let first = between(&whole, f64::NEG_INFINITY, split_s);
+    let second = between(&whole, split_s, f64::INFINITY);
+
+    // The map: the SLAM run of rotations 1-60 at its optimised poses.
+    let run = run_mission(&first, &config, &NoProgress).unwrap();
+    let trajectory: Vec<TrajectoryPose> = run
+        .nodes
+        .iter()
+        .map(|n| TrajectoryPose {
+            stamp_s: n.stamp_s,
+            pose: n.optimised,
+        })
+        .collect();
+    let (mut p, mut q) = (Vec::new(), Vec::new());
+    for n in &run.nodes {
+        if let Some(t) = truth_at(&first.ground_truth, n.stamp_s) {
+            p.push(n.optimised.translation());
+            q.push(t.translation());
+        }
+    }
+    assert!(p.len() >= 40, "{} map nodes with DGPS", p.len());
+    let dgps_from_map = align_se2(&p, &q);
+    let localize_config = LocalizationConfig::default();
+    let map = build_prior_map(
+        &first,
+        &config,
+        &trajectory,
+        Some(dgps_from_map),
+        &localize_config,
+    )
+    .unwrap();
+
+    let localized = localize(&second, &map, &localize_config).unwrap();
+    let rotations = &localized.rotations;
+    assert!(rotations.len() >= 50, "{} rotations", rotations.len());
+    let converged = rotations
+        .iter()
+        .position(|r| r.step.state == LocalizationState::Localised)
+        .expect("the filter localises at some rotation");
+    let errors: Vec<f64> = rotations[converged..]
+        .iter()
+        .filter_map(|r| {
+            let truth = truth_at(&localized.ground_truth, r.stamp_s)?;
+            let (x, y) = dgps_from_map.transform_xy(r.step.estimate.x(), r.step.estimate.y());
+            Some((truth.x() - x).hypot(truth.y() - y))
+        })
+        .collect();
+    assert!(errors.len() >= 40, "{} rotations with DGPS", errors.len());
+    let ate = (errors.iter().map(|e| e * e).sum::<f64>() / errors.len() as f64).sqrt();
+    let report = build_report(&localized, &map, "map", &localize_config, None);
+    let dead_reckoning = report.ate_rmse_dead_reckoning_m.unwrap();
+    let kept = rotations[converged..]
+        .iter()
+        .filter(|r| {
+            matches!(
+                r.step.state,
+                LocalizationState::Localised | LocalizationState::Coasting
+            )
+        })
+        .count();
+    eprintln!(
+        "real St Pere 61-115 on the map of 1-60: converged at rotation {converged}, \
+         ATE {ate:.3} m through the map's DGPS fit, dead reckoning {dead_reckoning:.3} m, \
+         {kept} of {} rotations localised or coasting, {} far from the map",
+        rotations.len() - converged,
+        report.rotations_far_from_map
+    );
+    // Conservative bounds (the issue asks for 1.0 m; EXPERIMENTS.md
+    // gives the figure): the filter beats dead reckoning, converges early
+    // and stays localised or coasting through the part of the route that
+    // lies far from the map.
+    assert!(converged < 10, "converged at rotation {converged}");
+    assert!(
+        ate < dead_reckoning,
+        "ATE {ate} m, dead reckoning {dead_reckoning} m"
+    );
+    assert!(ate < 1.5, "ATE {ate} m");
+    assert!(
+        kept as f64 >= 0.9 * (rotations.len() - converged) as f64,
+        "{kept} localised or coasting"
+    );
+    assert!(report.rotations_far_from_map > 0);
+}
