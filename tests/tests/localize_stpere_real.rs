@@ -96,16 +96,31 @@ fn the_second_half_of_real_st_pere_localises_on_the_first_halfs_map() {
         .iter()
         .position(|r| r.step.state == LocalizationState::Localised)
         .expect("the filter localises at some rotation");
-    let errors: Vec<f64> = rotations[converged..]
+    // (estimate in the map frame, DGPS) of every rotation from the
+    // convergence on that the DGPS covers.
+    let pairs: Vec<_> = rotations[converged..]
         .iter()
         .filter_map(|r| {
             let truth = truth_at(&localized.ground_truth, r.stamp_s)?;
-            let (x, y) = dgps_from_map.transform_xy(r.step.estimate.x(), r.step.estimate.y());
-            Some((truth.x() - x).hypot(truth.y() - y))
+            Some((r.step.estimate.translation(), truth.translation()))
         })
         .collect();
-    assert!(errors.len() >= 40, "{} rotations with DGPS", errors.len());
-    let ate = (errors.iter().map(|e| e * e).sum::<f64>() / errors.len() as f64).sqrt();
+    assert!(pairs.len() >= 40, "{} rotations with DGPS", pairs.len());
+    let rmse = |dgps_from_estimate: &echofield_graph::Se2| {
+        let sum: f64 = pairs
+            .iter()
+            .map(|(e, t)| {
+                let (x, y) = dgps_from_estimate.transform_xy(e.x, e.y);
+                (t.x - x).hypot(t.y - y).powi(2)
+            })
+            .sum();
+        (sum / pairs.len() as f64).sqrt()
+    };
+    // Through the map's fit, and as an ATE is usually given (the
+    // estimates themselves fitted onto the DGPS, as the dead reckoning is).
+    let ate = rmse(&dgps_from_map);
+    let (e, t): (Vec<_>, Vec<_>) = pairs.iter().copied().unzip();
+    let ate_fitted = rmse(&align_se2(&e, &t));
     let report = build_report(&localized, &map, "map", &localize_config, None);
     let dead_reckoning = report.ate_rmse_dead_reckoning_m.unwrap();
     let kept = rotations[converged..]
@@ -119,21 +134,23 @@ fn the_second_half_of_real_st_pere_localises_on_the_first_halfs_map() {
         .count();
     eprintln!(
         "real St Pere 61-115 on the map of 1-60: converged at rotation {converged}, \
-         ATE {ate:.3} m through the map's DGPS fit, dead reckoning {dead_reckoning:.3} m, \
+         ATE {ate:.3} m through the map's DGPS fit, {ate_fitted:.3} m fitted, dead reckoning {dead_reckoning:.3} m, \
          {kept} of {} rotations localised or coasting, {} far from the map",
         rotations.len() - converged,
         report.rotations_far_from_map
     );
-    // Conservative bounds (the issue asks for 1.0 m; EXPERIMENTS.md
-    // gives the figure): the filter beats dead reckoning, converges early
-    // and stays localised or coasting through the part of the route that
-    // lies far from the map.
+    // The issue's 1.0 m on the fitted ATE; a conservative bound through
+    // the map's fit, which carries the map run's own error (EXPERIMENTS.md
+    // gives the figures). The filter beats dead reckoning, converges
+    // early and stays localised or coasting through the part of the route
+    // that lies far from the map.
     assert!(converged < 10, "converged at rotation {converged}");
     assert!(
         ate < dead_reckoning,
         "ATE {ate} m, dead reckoning {dead_reckoning} m"
     );
     assert!(ate < 1.5, "ATE {ate} m");
+    assert!(ate_fitted <= 1.0, "fitted ATE {ate_fitted} m");
     assert!(
         kept as f64 >= 0.9 * (rotations.len() - converged) as f64,
         "{kept} localised or coasting"
