@@ -430,13 +430,18 @@ impl<'c> State<'c> {
                 path: self.path,
             });
         }
-        // The sonar's frame, for its mounting in the static transforms.
-        let sonar_frame = chosen[Stream::Beam as usize].as_ref().and_then(|name| {
-            self.topics
-                .iter()
-                .find(|(n, _)| n == name)
-                .and_then(|(_, t)| t.frame_id.clone())
-        });
+        // The sonar's and the DVL's frames, for their mountings in the
+        // static transforms.
+        let frame_of = |stream: Stream| {
+            chosen[stream as usize].as_ref().and_then(|name| {
+                self.topics
+                    .iter()
+                    .find(|(n, _)| n == name)
+                    .and_then(|(_, t)| t.frame_id.clone())
+            })
+        };
+        let sonar_frame = frame_of(Stream::Beam);
+        let dvl_frame = frame_of(Stream::Dvl);
         let mut mission = Mission::default();
         let mut uses = Vec::with_capacity(self.topics.len());
         let mut static_transforms: Vec<Transform> = Vec::new();
@@ -511,7 +516,7 @@ impl<'c> State<'c> {
                 if let Some(i) = tf_use {
                     let found = sonar_frame
                         .as_deref()
-                        .and_then(|f| tf::sonar_mounting(&static_transforms, f));
+                        .and_then(|f| tf::mounting_of(&static_transforms, f));
                     uses[i].reason = match (&found, sonar_frame.as_deref()) {
                         (Some(m), _) => {
                             mission.mounting = m.apply(&mission.mounting);
@@ -523,6 +528,20 @@ impl<'c> State<'c> {
                         ),
                         (None, None) => "no sonar topic names its frame: mounting unknown".into(),
                     };
+                    // The DVL's position and yaw on the vehicle, for the
+                    // dead reckoning's lever-arm compensation.
+                    let dvl = dvl_frame
+                        .as_deref()
+                        .and_then(|f| tf::mounting_of(&static_transforms, f));
+                    let dvl_topic = chosen[Stream::Dvl as usize].as_deref();
+                    if let (Some(m), Some(topic)) = (dvl, dvl_topic) {
+                        mission.mounting.vehicle_from_dvl = m.vehicle_from_frame;
+                        uses[i].role = Some("mounting");
+                        uses[i].reason = format!("{}; {}", uses[i].reason, m.describe_dvl());
+                        if let Some(u) = uses.iter_mut().find(|u| u.topic == topic) {
+                            u.reason = format!("{}; {}", u.reason, m.describe_dvl());
+                        }
+                    }
                 }
             }
         }
