@@ -275,6 +275,14 @@ def write_caves(path):
         entries.append(("/imu_adis_ros", "sensor_msgs/msg/Imu", t, m.imu(T0 + t)))
         entries.append(("/depth_sensor", pkg + "Depth", t, store.types[pkg + "Depth"](header=m.header(T0 + t, "depth"), depth=13.9)))
         entries.append(("/odometry", "nav_msgs/msg/Odometry", t, m.odometry(T0 + t)))
+    # The data set publishes its mountings on /tf (no /tf_static), beside the moving vehicle:
+    # world -> sparus moves; sparus -> micron (0.55, 0, -0.1) m, yaw 3.0 rad and
+    # sparus -> dvl (-0.4, 0.05, 0.2) m, yaw pi/4 are repeated unchanged.
+    for k in range(3):
+        t = 0.05 + 0.1 * k
+        entries.append(("/tf", "tf2_msgs/msg/TFMessage", t, m.tf(T0 + t, "world", "sparus", (1.0 * k, 0.0, 13.9), 0.1 * k)))
+        entries.append(("/tf", "tf2_msgs/msg/TFMessage", t, m.tf(T0 + t, "sparus", "micron", (0.55, 0.0, -0.1), 3.0)))
+        entries.append(("/tf", "tf2_msgs/msg/TFMessage", t, m.tf(T0 + t, "sparus", "dvl", (-0.4, 0.05, 0.2), math.pi / 4)))
     write_bag(path, store, entries)
 
 

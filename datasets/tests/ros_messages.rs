@@ -266,7 +266,8 @@ fn mounting_config_overrides_tf_static() {
 /// (`cirs_girona_cala_viuda/RangeImageBeam`, `LinkquestDvl`) beside their
 /// standard twins, in a ROS 1 bag: the sonar topic must be chosen, both
 /// sonar topics give the same beams, the LinkQuest DVL and the `_ros` Imu
-/// are taken by type, and the custom Imu and depth are named as skipped.
+/// are taken by type, the custom Imu and depth are named as skipped, and
+/// the mountings come from the `/tf` pairs that never change.
 #[test]
 fn girona_caves_messages() {
     let e = read_mission_with(&fixture("girona_caves.bag"), &TopicChoice::default())
@@ -301,6 +302,28 @@ fn girona_caves_messages() {
     assert_eq!(use_of(&uses, "/dvl_linkquest").role, Some("dvl"));
     assert_eq!(use_of(&uses, "/imu_adis_ros").role, Some("heading"));
     assert_eq!(m.attitude.len(), 2);
+    // The mountings from the /tf pairs that never change (the moving
+    // world -> sparus is not one).
+    let s = m.mounting.vehicle_from_sonar;
+    assert!(
+        close(s.x(), 0.55, 1e-9) && close(s.y(), 0.0, 1e-9) && close(s.theta(), 3.0, 1e-9),
+        "{s:?}"
+    );
+    assert_eq!(m.mounting.source, MountingSource::Recorded);
+    let d = m.mounting.vehicle_from_dvl;
+    let quarter = std::f64::consts::FRAC_PI_4;
+    assert!(
+        close(d.x(), -0.4, 1e-9) && close(d.y(), 0.05, 1e-9) && close(d.theta(), quarter, 1e-9),
+        "{d:?}"
+    );
+    let tf = use_of(&uses, "/tf");
+    assert_eq!(tf.role, Some("mounting"));
+    assert!(
+        tf.reason.contains("2 of its 3 frame pairs never change")
+            && tf.reason.contains("sparus -> micron")
+            && tf.reason.contains("DVL mounting sparus -> dvl"),
+        "{tf:?}"
+    );
     for skipped in ["/imu_adis", "/depth_sensor"] {
         let u = use_of(&uses, skipped);
         assert_eq!(u.role, None);

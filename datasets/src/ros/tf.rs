@@ -17,6 +17,13 @@
 //!   reported (a head far from horizontal, such as a vertical profiler,
 //!   does not image the horizontal plane).
 //!
+//! ROS 1 bags recorded before tf2's `/tf_static` (the Girona underwater
+//! caves data set among them) publish the mountings on `/tf`, repeatedly,
+//! beside the moving vehicle: a `/tf` frame pair whose transform never
+//! changes over the recording (seen at least twice, equal to
+//! [`CONSTANT_TOLERANCE`]) is read as static ([`ConstantTransforms`]), after
+//! `/tf_static`, which wins for a child it has.
+//!
 //! For the DVL only position and yaw are used (`vehicle_from_dvl`): the
 //! dead reckoning rotates its velocities by the yaw and removes the lever
 //! arm (`v − ω × r`, ω the yaw rate); its messages' own axis conventions
@@ -96,6 +103,51 @@ impl TfMounting {
     }
 }
 
+/// How far (m, rad) a `/tf` transform may move between messages and still
+/// count as constant (drivers republish the same numbers).
+pub(crate) const CONSTANT_TOLERANCE: f64 = 1e-6;
+
+/// The `/tf` frame pairs of a recording, and whether each kept one value.
+#[derive(Debug, Default)]
+pub(crate) struct ConstantTransforms {
+    /// (first transform, messages seen, changed), in the order first seen.
+    pairs: Vec<(Transform, u64, bool)>,
+    index: HashMap<(String, String), usize>,
+}
+
+impl ConstantTransforms {
+    /// One transform of a `/tf` message.
+    pub fn add(&mut self, t: Transform) {
+        let key = (t.parent.clone(), t.child.clone());
+        match self.index.get(&key) {
+            Some(&i) => {
+                let (first, seen, changed) = &mut self.pairs[i];
+                *seen += 1;
+                let moved = (first.translation - t.translation).norm();
+                let turned = first.rotation.angle_to(&t.rotation);
+                *changed |= moved > CONSTANT_TOLERANCE || turned > CONSTANT_TOLERANCE;
+            }
+            None => {
+                self.index.insert(key, self.pairs.len());
+                self.pairs.push((t, 1, false));
+            }
+        }
+    }
+
+    /// The pairs seen at least twice that never changed.
+    pub fn constant(&self) -> impl Iterator<Item = &Transform> {
+        self.pairs
+            .iter()
+            .filter(|(_, seen, changed)| *seen >= 2 && !changed)
+            .map(|(t, _, _)| t)
+    }
+
+    /// Frame pairs seen.
+    pub fn pairs(&self) -> usize {
+        self.pairs.len()
+    }
+}
+
 /// Frames tried as the vehicle frame, in order.
 const VEHICLE_FRAMES: [&str; 2] = ["base_link", "base_footprint"];
 
@@ -171,6 +223,20 @@ mod tests {
         assert_eq!(m.sonar_angle, AngleDirection::CounterClockwise);
         assert!(m.tilt_rad < 1e-9);
         assert!(mounting_of(&transforms, "camera").is_none());
+    }
+
+    #[test]
+    fn only_unchanging_tf_pairs_are_constant() {
+        let mut c = ConstantTransforms::default();
+        for k in 0..3 {
+            let moving = tf("odom", "base_link", [k as f64, 0.0, 0.0], [0.0; 3]);
+            c.add(moving);
+            c.add(tf("base_link", "sonar", [0.5, 0.0, 0.0], [0.0, 0.0, 0.3]));
+        }
+        c.add(tf("base_link", "once", [1.0, 0.0, 0.0], [0.0; 3]));
+        let constant: Vec<_> = c.constant().map(|t| t.child.as_str()).collect();
+        assert_eq!(constant, ["sonar"]);
+        assert_eq!(c.pairs(), 3);
     }
 
     #[test]
