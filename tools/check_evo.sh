@@ -15,13 +15,10 @@ set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 root="$(dirname "$here")"
 venv="$here/.venv-evo"
-if [ ! -x "$venv/bin/evo_ape" ]; then
-  python3 -m venv "$venv"
-  "$venv/bin/pip" install --quiet --upgrade pip
-  "$venv/bin/pip" install --quiet evo
-fi
-cargo build --quiet --release -p echofield --manifest-path "$root/Cargo.toml"
-echofield="$root/target/release/echofield"
+# shellcheck source=peers/venv.sh
+. "$here/peers/venv.sh"
+peer_venv "$venv" evo evo
+echofield_release "$root"
 work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
 

@@ -11,13 +11,10 @@ set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 root="$(dirname "$here")"
 venv="$here/peers/.venv"
-if [ ! -x "$venv/bin/python" ] || ! "$venv/bin/python" -c "import gtsam" 2>/dev/null; then
-  python3 -m venv "$venv"
-  "$venv/bin/pip" install --quiet --upgrade pip
-  "$venv/bin/pip" install --quiet gtsam numpy
-fi
-cargo build --quiet --release -p echofield --manifest-path "$root/Cargo.toml"
-echofield="$root/target/release/echofield"
+# shellcheck source=peers/venv.sh
+. "$here/peers/venv.sh"
+peer_venv "$venv" "gtsam, numpy" gtsam numpy
+echofield_release "$root"
 work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
 

@@ -15,11 +15,9 @@ set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 root="$(dirname "$here")"
 venv="$here/.venv-mcap"
-if ! "$venv/bin/python" -c "import mcap, mcap_ros2, jsonschema" 2>/dev/null; then
-  python3 -m venv "$venv"
-  "$venv/bin/pip" install --quiet --upgrade pip
-  "$venv/bin/pip" install --quiet mcap mcap-ros2-support jsonschema
-fi
+# shellcheck source=peers/venv.sh
+. "$here/peers/venv.sh"
+peer_venv "$venv" "mcap, mcap_ros2, jsonschema" mcap mcap-ros2-support jsonschema
 
 files=("$@")
 if [ ${#files[@]} -eq 0 ]; then

@@ -17,13 +17,10 @@ set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 root="$(dirname "$here")"
 venv="$here/.venv-rosbags"
-if [ ! -x "$venv/bin/python" ] || ! "$venv/bin/python" -c "import rosbags, numpy" 2>/dev/null; then
-  python3 -m venv "$venv"
-  "$venv/bin/pip" install --quiet --upgrade pip
-  "$venv/bin/pip" install --quiet rosbags numpy
-fi
-cargo build --quiet --release -p echofield --manifest-path "$root/Cargo.toml"
-echofield="${CARGO_TARGET_DIR:-$root/target}/release/echofield"
+# shellcheck source=peers/venv.sh
+. "$here/peers/venv.sh"
+peer_venv "$venv" "rosbags, numpy" rosbags numpy
+echofield_release "$root"
 work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
 

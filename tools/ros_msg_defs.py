@@ -10,6 +10,12 @@ Retyped (fields only) from the packages' repositories:
   (paagutie/dvl_msgs).
 - waterlinked_a50_ros_driver/msg/{DVL,DVLBeam}: waterlinked/dvl-a50-ros-driver,
   msg/ at 15ad219 (ROS 1).
+- ping360_sonar/msg/SonarEcho: CentraleNantesRobotics/ping360_sonar (the ROS 1
+  driver), msg/SonarEcho.msg at 4ecc256.
+- cirs_girona_cala_viuda/msg/{RangeImageBeam,LinkquestDvl,Imu,Depth}: the
+  Girona underwater caves data set's package as ported to ROS 2,
+  PickNikRobotics/cirs_girona_cala_viuda, msg/ at 18ec011 (field names
+  lower-cased from the ROS 1 originals; the wire layout is the same).
 """
 
 from rosbags.typesys import get_types_from_msg
@@ -114,6 +120,77 @@ waterlinked_a50_ros_driver/DVLBeam[] beams
 bool velocity_valid
 int64 status
 string form
+""",
+    "ping360_sonar/msg/SonarEcho": """
+std_msgs/Header header
+float32 angle
+uint8 gain
+uint16 number_of_samples
+uint16 transmit_frequency
+uint16 speed_of_sound
+uint8 range
+uint8[] intensities
+""",
+    "cirs_girona_cala_viuda/msg/RangeImageBeam": """
+std_msgs/Header header
+float64 angle_grad
+float64 angle_rad
+int32 nbins
+int32 max_range
+int32[] beam_data
+""",
+    "cirs_girona_cala_viuda/msg/LinkquestDvl": """
+std_msgs/Header header
+string errcode
+int32[4] datagood
+float64[4] altitudebeam
+float64[4] bottomvelocitybeam
+float64[4] watervelocitybeam
+float64[4] watervelocitycredit
+float64[3] velocityinst
+int32 velocityinstflag
+float64[3] velocityearth
+int32 velocityearthflag
+float64[3] watervelocityinst
+int32 watervelocityinstflag
+float64[3] watervelocityearth
+int32 watervelocityearthflag
+float64 roll
+float64 pitch
+float64 heading
+float64 altitude
+float64 temperature
+float64 pressure
+float64 salinity
+float64 soundspeed
+string rawdata
+""",
+    "cirs_girona_cala_viuda/msg/Imu": """
+std_msgs/Header header
+float64 roll
+float64 pitch
+float64 yaw
+float64 qx
+float64 qy
+float64 qz
+float64 qw
+float64 temp
+float64 mx
+float64 my
+float64 mz
+float64 ax
+float64 ay
+float64 az
+float64 gx
+float64 gy
+float64 gz
+float64 bx
+float64 by
+float64 bz
+""",
+    "cirs_girona_cala_viuda/msg/Depth": """
+std_msgs/Header header
+float64 depth
 """,
 }
 

@@ -96,6 +96,39 @@ class Msgs:
             intensities=np.array([0.0, 50.0, 191.0, 7.0], dtype=np.float32),
         )
 
+    def range_image_beam(self, t, k):
+        # The Girona caves data set's own sonar message: the beam of one_beam_scan(t, k)
+        # (angle 0.2·k rad, 4 bins over [0, 20 m]) with beam_data [0, 50, 191, 7 + k].
+        return self.T["cirs_girona_cala_viuda/msg/RangeImageBeam"](
+            header=self.header(t, "micron"), angle_grad=math.degrees(0.2 * k), angle_rad=0.2 * k,
+            nbins=4, max_range=20, beam_data=np.array([0, 50, 191, 7 + k], dtype=np.int32),
+        )
+
+    def linkquest(self, t, good):
+        # velocityInst (0.3, 0.05, 0.01) m/s, z down; velocityInstFlag 1 (good) or 0.
+        return self.T["cirs_girona_cala_viuda/msg/LinkquestDvl"](
+            header=self.header(t, "dvl"), errcode="", datagood=np.ones(4, dtype=np.int32),
+            altitudebeam=np.full(4, 2.5), bottomvelocitybeam=np.zeros(4), watervelocitybeam=np.zeros(4),
+            watervelocitycredit=np.zeros(4), velocityinst=np.array([0.3, 0.05, 0.01]),
+            velocityinstflag=1 if good else 0, velocityearth=np.zeros(3), velocityearthflag=0,
+            watervelocityinst=np.zeros(3), watervelocityinstflag=0, watervelocityearth=np.zeros(3),
+            watervelocityearthflag=0, roll=0.0, pitch=0.0, heading=0.0, altitude=2.5, temperature=14.0,
+            pressure=0.0, salinity=35.0, soundspeed=1500.0, rawdata="",
+        )
+
+    def caves_imu(self, t):
+        # The data set's custom IMU message (not read: its *_ros twin is a sensor_msgs/Imu).
+        fields = {f: 0.0 for f in "roll pitch yaw qx qy qz temp mx my mz ax ay az gx gy gz bx by bz".split()}
+        return self.T["cirs_girona_cala_viuda/msg/Imu"](header=self.header(t, "imu"), qw=1.0, **fields)
+
+    def ping360_ros1(self, t, k):
+        # The ROS 1 driver: angle 100·k gradians (k·π/2 rad), range 10 m over 5 samples, bins [k, 1, 2, 3, 4].
+        return self.T["ping360_sonar/msg/SonarEcho"](
+            header=self.header(t, "sonar_frame"), angle=100.0 * k, gain=0, number_of_samples=5,
+            transmit_frequency=740, speed_of_sound=1500, range=10,
+            intensities=np.array([k, 1, 2, 3, 4], dtype=np.uint8),
+        )
+
     def marine_dvl(self, t):
         # Bottom track, velocity (0.5, 0.1, 0.05) m/s with z down; covariance diag 0.01.
         T = self.T
@@ -202,6 +235,117 @@ def messages(m, ros1):
     return out
 
 
+def ros1_store():
+    store = get_typestore(Stores.ROS1_NOETIC)
+    ros_msg_defs.register(store)
+    if "tf2_msgs/msg/TFMessage" not in store.types:
+        # tf2_msgs/TFMessage (ROS 1 noetic), missing from rosbags' ROS 1 store.
+        store.register(get_types_from_msg("geometry_msgs/TransformStamped[] transforms", "tf2_msgs/msg/TFMessage"))
+    return store
+
+
+def write_bag(path, store, entries, compression=Writer1.CompressionFormat.LZ4):
+    """A ROS 1 bag of (topic, type, time, message) entries, in time order."""
+    path.unlink(missing_ok=True)
+    writer = Writer1(path)
+    writer.set_compression(compression)
+    with writer as w:
+        conns = {}
+        for topic, ty, t, msg in sorted(entries, key=lambda e: e[2]):
+            if topic not in conns:
+                conns[topic] = w.add_connection(topic, ty, typestore=store)
+            w.write(conns[topic], int((T0 + t) * 1e9), store.serialize_ros1(msg, ty))
+
+
+def write_caves(path):
+    """The topics of the Girona underwater caves data set (Mallios et al., IJRR 2017),
+    with its own message types (cirs_girona_cala_viuda) and their standard twins."""
+    store = ros1_store()
+    m = Msgs(store, ros1=True)
+    pkg = "cirs_girona_cala_viuda/msg/"
+    entries = []
+    for k in range(2):
+        t = 0.12 + 0.1 * k
+        entries.append(("/sonar_micron", pkg + "RangeImageBeam", t, m.range_image_beam(T0 + t, k)))
+        scan = m.one_beam_scan(T0 + t, k)
+        scan.intensities = np.array([0.0, 50.0, 191.0, 7.0 + k], dtype=np.float32)
+        entries.append(("/sonar_micron_ros", "sensor_msgs/msg/LaserScan", t, scan))
+        entries.append(("/dvl_linkquest", pkg + "LinkquestDvl", t, m.linkquest(T0 + t, good=k == 0)))
+        entries.append(("/imu_adis", pkg + "Imu", t, m.caves_imu(T0 + t)))
+        entries.append(("/imu_adis_ros", "sensor_msgs/msg/Imu", t, m.imu(T0 + t)))
+        entries.append(("/depth_sensor", pkg + "Depth", t, store.types[pkg + "Depth"](header=m.header(T0 + t, "depth"), depth=13.9)))
+        entries.append(("/odometry", "nav_msgs/msg/Odometry", t, m.odometry(T0 + t)))
+    # The data set publishes its mountings on /tf (no /tf_static), beside the moving vehicle:
+    # world -> sparus moves; sparus -> micron (0.55, 0, -0.1) m, yaw 3.0 rad and
+    # sparus -> dvl (-0.4, 0.05, 0.2) m, yaw pi/4 are repeated unchanged.
+    for k in range(3):
+        t = 0.05 + 0.1 * k
+        entries.append(("/tf", "tf2_msgs/msg/TFMessage", t, m.tf(T0 + t, "world", "sparus", (1.0 * k, 0.0, 13.9), 0.1 * k)))
+        entries.append(("/tf", "tf2_msgs/msg/TFMessage", t, m.tf(T0 + t, "sparus", "micron", (0.55, 0.0, -0.1), 3.0)))
+        entries.append(("/tf", "tf2_msgs/msg/TFMessage", t, m.tf(T0 + t, "sparus", "dvl", (-0.4, 0.05, 0.2), math.pi / 4)))
+    write_bag(path, store, entries)
+
+
+def write_ping360_ros1(path):
+    """Three echoes of the Ping360's ROS 1 driver (ping360_sonar/SonarEcho)."""
+    store = ros1_store()
+    m = Msgs(store, ros1=True)
+    entries = [("/ping360_node/sonar/data", "ping360_sonar/msg/SonarEcho", 0.1 * (k + 1), m.ping360_ros1(T0 + 0.1 * (k + 1), k))
+               for k in range(3)]
+    write_bag(path, store, entries)
+
+
+# The vehicle of dvl_lever_arm/: from the origin, heading 0, it turns at OMEGA rad/s with its
+# origin moving forward at SPEED m/s, for DURATION s. Its DVL sits at DVL_XY m, yawed DVL_YAW rad
+# (base_link -> dvl_link on /tf_static), and measures the velocity of that point, in its own axes.
+OMEGA, SPEED, DURATION = 0.2, 0.5, 30.0
+DVL_XY, DVL_YAW = (1.0, -0.5), 0.3
+
+
+def circle_pose(t):
+    yaw = OMEGA * t
+    return SPEED / OMEGA * math.sin(yaw), SPEED / OMEGA * (1.0 - math.cos(yaw)), yaw
+
+
+def write_lever_arm(folder):
+    """A rosbag2 (MCAP): a turning vehicle whose DVL sits off its origin."""
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    ros_msg_defs.register(store)
+    m = Msgs(store, ros1=False)
+    T = store.types
+    # v_dvl = v + w x r in the vehicle frame, then in the DVL's axes (rotated by -DVL_YAW).
+    vx, vy = SPEED - OMEGA * DVL_XY[1], OMEGA * DVL_XY[0]
+    c, s = math.cos(DVL_YAW), math.sin(DVL_YAW)
+    dvl = (c * vx + s * vy, -s * vx + c * vy)
+    entries = [("/tf_static", "tf2_msgs/msg/TFMessage", 0.0, m.tf(0.0, "base_link", "dvl_link", (*DVL_XY, 0.4), DVL_YAW))]
+    for i in range(int(DURATION * 5) + 1):
+        t = 0.2 * i
+        _, _, yaw = circle_pose(t)
+        entries.append(("/imu/data", "sensor_msgs/msg/Imu", t, T["sensor_msgs/msg/Imu"](
+            header=m.header(T0 + t, "imu_link"), orientation=m.quat(yaw), orientation_covariance=np.zeros(9),
+            angular_velocity=m.v3(0.0, 0.0, OMEGA), angular_velocity_covariance=np.zeros(9),
+            linear_acceleration=m.v3(0.0, 0.0, 9.8), linear_acceleration_covariance=np.zeros(9))))
+        twist = T["geometry_msgs/msg/TwistWithCovarianceStamped"](
+            header=m.header(T0 + t + 0.1, "dvl_link"),
+            twist=T["geometry_msgs/msg/TwistWithCovariance"](
+                twist=T["geometry_msgs/msg/Twist"](linear=m.v3(dvl[0], dvl[1], 0.0), angular=m.v3(0.0, 0.0, 0.0)),
+                covariance=np.zeros(36)))
+        entries.append(("/dvl/twist", "geometry_msgs/msg/TwistWithCovarianceStamped", t + 0.1, twist))
+    for i in range(int(DURATION) + 1):
+        x, y, yaw = circle_pose(float(i))
+        pose = T["geometry_msgs/msg/PoseStamped"](
+            header=m.header(T0 + i, "odom"),
+            pose=T["geometry_msgs/msg/Pose"](position=T["geometry_msgs/msg/Point"](x=x, y=y, z=0.0), orientation=m.quat(yaw)))
+        entries.append(("/ground_truth", "geometry_msgs/msg/PoseStamped", float(i), pose))
+    shutil.rmtree(folder, ignore_errors=True)
+    with Writer2(folder, version=8, storage_plugin=StoragePlugin.MCAP) as w:
+        conns = {}
+        for topic, ty, t, msg in sorted(entries, key=lambda e: e[2]):
+            if topic not in conns:
+                conns[topic] = w.add_connection(topic, ty, typestore=store)
+            w.write(conns[topic], int((T0 + t) * 1e9), store.serialize_cdr(msg, ty))
+
+
 def write_ros2(folder, storage):
     store = get_typestore(Stores.ROS2_HUMBLE)
     ros_msg_defs.register(store)
@@ -216,21 +360,8 @@ def write_ros2(folder, storage):
 
 
 def write_ros1(path, compression):
-    store = get_typestore(Stores.ROS1_NOETIC)
-    ros_msg_defs.register(store)
-    if "tf2_msgs/msg/TFMessage" not in store.types:
-        # tf2_msgs/TFMessage (ROS 1 noetic), missing from rosbags' ROS 1 store.
-        store.register(get_types_from_msg("geometry_msgs/TransformStamped[] transforms", "tf2_msgs/msg/TFMessage"))
-    m = Msgs(store, ros1=True)
-    path.unlink(missing_ok=True)
-    writer = Writer1(path)
-    writer.set_compression(compression)
-    with writer as w:
-        conns = {}
-        for topic, ty, t, msg in messages(m, ros1=True):
-            if topic not in conns:
-                conns[topic] = w.add_connection(topic, ty, typestore=store)
-            w.write(conns[topic], int((T0 + t) * 1e9), store.serialize_ros1(msg, ty))
+    store = ros1_store()
+    write_bag(path, store, messages(Msgs(store, ros1=True), ros1=True), compression)
 
 
 def write_bad(folder):
@@ -254,6 +385,9 @@ def main(out):
     write_ros1(out / "ros1_lz4.bag", Writer1.CompressionFormat.LZ4)
     write_ros1(out / "ros1_bz2.bag", Writer1.CompressionFormat.BZ2)
     write_bad(out / "bad_ping360")
+    write_caves(out / "girona_caves.bag")
+    write_ping360_ros1(out / "ping360_ros1.bag")
+    write_lever_arm(out / "dvl_lever_arm")
 
 
 if __name__ == "__main__":

@@ -9,8 +9,8 @@
 //!   ([`bag`]).
 //!
 //! Topics are chosen and summarised in one place for all of them
-//! ([`crate::mcap::read_mission_with`]); the sonar mounting comes from
-//! `/tf_static` ([`tf`]) unless an echofield MCAP records it.
+//! ([`crate::mcap::read_mission_with`]); the sonar and DVL mountings come
+//! from `/tf_static` ([`tf`]) unless an echofield MCAP records them.
 
 pub mod bag;
 pub(crate) mod messages;

@@ -261,3 +261,138 @@ fn mounting_config_overrides_tf_static() {
     assert!(close(s.x(), 0.5 + 0.2 * 0.1f64.cos(), 1e-9), "{s:?}");
     assert_eq!(out.mounting.source, MountingSource::Config);
 }
+
+/// The Girona underwater caves data set's own messages
+/// (`cirs_girona_cala_viuda/RangeImageBeam`, `LinkquestDvl`) beside their
+/// standard twins, in a ROS 1 bag: the sonar topic must be chosen, both
+/// sonar topics give the same beams, the LinkQuest DVL and the `_ros` Imu
+/// are taken by type, the custom Imu and depth are named as skipped, and
+/// the mountings come from the `/tf` pairs that never change.
+#[test]
+fn girona_caves_messages() {
+    let e = read_mission_with(&fixture("girona_caves.bag"), &TopicChoice::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("/sonar_micron") && e.contains("/sonar_micron_ros"),
+        "{e}"
+    );
+    let (m, uses) = read("girona_caves.bag", &["sonar=/sonar_micron"]);
+    assert_eq!(m.beams.len(), 2);
+    for (k, b) in m.beams.iter().enumerate() {
+        assert!(close(b.angle_rad, 0.2 * k as f64, 1e-12), "{b:?}");
+        assert!(close(b.stamp_s, T0 + 0.12 + 0.1 * k as f64, 1e-6));
+        assert_eq!((b.bin_size_m, b.first_bin_range_m), (5.0, 0.0));
+        assert_eq!(b.intensities, [0, 50, 191, 7 + k as u8]);
+    }
+    let (twin, _) = read("girona_caves.bag", &["sonar=/sonar_micron_ros"]);
+    for (a, b) in m.beams.iter().zip(&twin.beams) {
+        // The LaserScan carries the angle as float32.
+        assert!(close(a.angle_rad, b.angle_rad, 1e-6));
+        assert_eq!(
+            (a.bin_size_m, &a.intensities),
+            (b.bin_size_m, &b.intensities)
+        );
+    }
+    assert_eq!(m.dvl.len(), 2);
+    // velocityInst (0.3, 0.05, 0.01), z down -> z up; flag 1, then 0.
+    let v = m.dvl[0].velocity_mps;
+    assert!(close(v.x, 0.3, 1e-12) && close(v.y, -0.05, 1e-12) && close(v.z, -0.01, 1e-12));
+    assert!(m.dvl[0].valid && !m.dvl[1].valid);
+    assert_eq!(use_of(&uses, "/dvl_linkquest").role, Some("dvl"));
+    assert_eq!(use_of(&uses, "/imu_adis_ros").role, Some("heading"));
+    assert_eq!(m.attitude.len(), 2);
+    // The mountings from the /tf pairs that never change (the moving
+    // world -> sparus is not one).
+    let s = m.mounting.vehicle_from_sonar;
+    assert!(
+        close(s.x(), 0.55, 1e-9) && close(s.y(), 0.0, 1e-9) && close(s.theta(), 3.0, 1e-9),
+        "{s:?}"
+    );
+    assert_eq!(m.mounting.source, MountingSource::Recorded);
+    let d = m.mounting.vehicle_from_dvl;
+    let quarter = std::f64::consts::FRAC_PI_4;
+    assert!(
+        close(d.x(), -0.4, 1e-9) && close(d.y(), 0.05, 1e-9) && close(d.theta(), quarter, 1e-9),
+        "{d:?}"
+    );
+    let tf = use_of(&uses, "/tf");
+    assert_eq!(tf.role, Some("mounting"));
+    assert!(
+        tf.reason.contains("2 of its 3 frame pairs never change")
+            && tf.reason.contains("sparus -> micron")
+            && tf.reason.contains("DVL mounting sparus -> dvl"),
+        "{tf:?}"
+    );
+    for skipped in ["/imu_adis", "/depth_sensor"] {
+        let u = use_of(&uses, skipped);
+        assert_eq!(u.role, None);
+        assert!(u.reason.contains("not one echofield reads"), "{u:?}");
+    }
+}
+
+/// The Ping360's ROS 1 driver writes the angle in gradians.
+#[test]
+fn ros1_ping360_driver() {
+    let (m, uses) = read("ping360_ros1.bag", &[]);
+    assert_eq!(
+        use_of(&uses, "/ping360_node/sonar/data").role,
+        Some("sonar")
+    );
+    assert_eq!(m.beams.len(), 3);
+    for (k, b) in m.beams.iter().enumerate() {
+        let expected = k as f64 * std::f64::consts::FRAC_PI_2;
+        assert!(close(b.angle_rad, expected, 1e-12), "{b:?}");
+        assert_eq!(b.bin_size_m, 2.0);
+        assert_eq!(b.intensities, [k as u8, 1, 2, 3, 4]);
+    }
+}
+
+/// A DVL 1.1 m off the vehicle origin (yawed 0.3 rad) while the vehicle
+/// turns at 0.2 rad/s: `/tf_static` gives its mounting, the dead reckoning
+/// then removes the lever arm; without the mounting it drifts by metres.
+#[test]
+fn dvl_lever_arm_from_tf_static() {
+    use echofield_frontend::dead_reckoning::{DeadReckoningConfig, run};
+    let (m, uses) = read("dvl_lever_arm", &[]);
+    let d = m.mounting.vehicle_from_dvl;
+    assert!(
+        close(d.x(), 1.0, 1e-9) && close(d.y(), -0.5, 1e-9) && close(d.theta(), 0.3, 1e-9),
+        "{d:?}"
+    );
+    let u = use_of(&uses, "/dvl/twist");
+    assert!(
+        u.reason.contains("DVL mounting base_link -> dvl_link"),
+        "{u:?}"
+    );
+    assert_eq!(use_of(&uses, "/tf_static").role, Some("mounting"));
+
+    // Motion between 1 s and 16 s (half a turn, where a lever arm left in
+    // the body-frame velocity displaces the track most: 2·|ω×r|/ω), dead
+    // reckoning against the ground truth.
+    let motion_error = |mission: &Mission| {
+        let nav = run(mission, &DeadReckoningConfig::default()).unwrap();
+        let dr = |t: f64| nav.pose_at(T0 + t).unwrap();
+        let gt = |i: usize| m.ground_truth[i].world_from_vehicle;
+        let rel_dr = dr(1.0).between(&dr(16.0));
+        let rel_gt = gt(1).between(&gt(16));
+        (rel_dr.translation() - rel_gt.translation()).norm()
+    };
+    let with_arm = motion_error(&m);
+    assert!(with_arm < 0.02, "{with_arm} m");
+    let mut without = m.clone();
+    // The DVL's yaw kept, its position (the lever arm) dropped.
+    without.mounting.vehicle_from_dvl = echofield_graph::Se2::new(0.0, 0.0, d.theta());
+    let without_arm = motion_error(&without);
+    eprintln!("lever arm: {with_arm} m with the tf_static DVL mounting, {without_arm} m without");
+    assert!(without_arm > 1.0, "{without_arm} m");
+
+    // `[mounting]` keys override it.
+    let config = echofield_frontend::mounting::MountingConfig {
+        dvl_x_m: Some(0.2),
+        ..Default::default()
+    };
+    let out = config.apply(&m).unwrap();
+    assert!(close(out.mounting.vehicle_from_dvl.x(), 0.2, 1e-12));
+    assert!(close(out.mounting.vehicle_from_dvl.y(), -0.5, 1e-9));
+}

@@ -12,17 +12,13 @@ set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 root="$(cd "$here/../.." && pwd)"
 venv="$here/.venv"
-
-if [[ ! -x "$venv/bin/python" ]] || ! "$venv/bin/python" -c "import gtsam, numpy" 2>/dev/null; then
-    echo "creating $venv with gtsam from PyPI" >&2
-    python3 -m venv "$venv"
-    "$venv/bin/pip" install --quiet --upgrade pip
-    "$venv/bin/pip" install --quiet gtsam numpy
-fi
+# shellcheck source=venv.sh
+. "$here/venv.sh"
+peer_venv "$venv" "gtsam, numpy" gtsam numpy
 
 echo "building echofield (release)" >&2
-cargo build --quiet --release -p echofield --manifest-path "$root/Cargo.toml"
-binary="$root/target/release/echofield"
+echofield_release "$root"
+binary="$echofield"
 
 if [[ $# -eq 0 ]]; then
     data="$root/datasets/posegraph"

@@ -166,3 +166,48 @@ fn stpere_keyframes_become_beams_and_bad_point_sets_name_file_line_and_field() {
     );
     assert!(!out.exists());
 }
+
+/// `convert ros` on the Girona caves layout (a ROS 1 bag written by the
+/// `rosbags` package, `datasets/ros-fixtures/girona_caves.bag`): the
+/// data set's own RangeImageBeam and LinkquestDvl topics become an
+/// echofield MCAP whose metadata keeps the sonar and DVL mountings found
+/// on `/tf`; the summary names what fed what and what was skipped.
+#[test]
+fn convert_ros_girona_caves_bag_keeps_the_mountings() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("caves.mcap");
+    let input = data("ros-fixtures/girona_caves.bag");
+    let run = convert(&[
+        "ros",
+        input.to_str().unwrap(),
+        "--topic",
+        "sonar=/sonar_micron",
+        "--output",
+        out.to_str().unwrap(),
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    for line in [
+        "topic /sonar_micron (cirs_girona_cala_viuda/RangeImageBeam, 2 messages): used as sonar",
+        "topic /dvl_linkquest (cirs_girona_cala_viuda/LinkquestDvl, 2 messages): used as dvl",
+        "topic /imu_adis (cirs_girona_cala_viuda/Imu, 2 messages): skipped",
+        "DVL mounting sparus -> dvl",
+    ] {
+        assert!(stdout.contains(line), "{line}\n{stdout}");
+    }
+    let m = read_mission(&out).unwrap();
+    assert_eq!((m.beams.len(), m.dvl.len(), m.attitude.len()), (2, 2, 2));
+    let (s, d) = (m.mounting.vehicle_from_sonar, m.mounting.vehicle_from_dvl);
+    assert!(
+        (s.x() - 0.55).abs() < 1e-9 && (s.theta() - 3.0).abs() < 1e-9,
+        "{s:?}"
+    );
+    assert!(
+        (d.x() + 0.4).abs() < 1e-9 && (d.y() - 0.05).abs() < 1e-9,
+        "{d:?}"
+    );
+}

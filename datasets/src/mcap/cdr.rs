@@ -69,19 +69,7 @@ impl<'a> CdrReader<'a> {
     }
 
     fn take(&mut self, field: &str, align: usize, n: usize) -> Result<&'a [u8], FieldError> {
-        let start = self.pos.next_multiple_of(align);
-        let end = start.checked_add(n).filter(|&e| e <= self.body.len());
-        let Some(end) = end else {
-            return Err(FieldError::new(
-                field,
-                format!(
-                    "truncated: need {n} bytes at offset {start}, {} left",
-                    self.body.len().saturating_sub(start)
-                ),
-            ));
-        };
-        self.pos = end;
-        Ok(&self.body[start..end])
+        crate::ros::wire::take(self.body, &mut self.pos, field, align, n)
     }
 
     fn array<const N: usize>(&mut self, field: &str) -> Result<[u8; N], FieldError> {

@@ -56,6 +56,9 @@ impl Decoder {
 
 /// The topic that carries the static transforms.
 const TF_STATIC: &str = "/tf_static";
+/// The topic of the other transforms; its unchanging frame pairs count as
+/// static ([`tf::ConstantTransforms`]).
+const TF: &str = "/tf";
 
 /// Reads a mission from an echofield or ROS 2 MCAP file (see the module
 /// documentation of [`crate::mcap`] for the rules: sorting, duplicates,
@@ -228,6 +231,8 @@ struct State<'c> {
     topics: Vec<(String, Topic)>,
     messages: u64,
     metadata: Option<(String, SensorMounting)>,
+    /// The frame pairs of `/tf`, folded as they come.
+    tf_pairs: tf::ConstantTransforms,
 }
 
 impl<'c> State<'c> {
@@ -241,6 +246,7 @@ impl<'c> State<'c> {
             topics: Vec::new(),
             messages: 0,
             metadata: None,
+            tf_pairs: tf::ConstantTransforms::default(),
         }
     }
 
@@ -347,10 +353,10 @@ impl<'c> State<'c> {
         let Some(decoder) = decoder else {
             return Ok(());
         };
-        // Not decoded: dynamic transforms, and topics of a stream whose
-        // topic is chosen (unless chosen themselves).
+        // Not decoded: transforms on other topics, and topics of a stream
+        // whose topic is chosen (unless chosen themselves).
         let needed = match decoder.stream() {
-            None => topic == TF_STATIC,
+            None => topic == TF_STATIC || topic == TF,
             Some(s) => {
                 let choice = &self.choice.topics;
                 choice[s as usize].as_ref().is_none_or(|t| *t == topic)
@@ -385,7 +391,12 @@ impl<'c> State<'c> {
         if entry.frame_id.is_none() {
             entry.frame_id = frame_id;
         }
-        entry.records.push(decoded);
+        match decoded {
+            Decoded::Transforms(transforms) if topic == TF => {
+                transforms.into_iter().for_each(|t| self.tf_pairs.add(t))
+            }
+            decoded => entry.records.push(decoded),
+        }
         Ok(())
     }
 
@@ -430,17 +441,24 @@ impl<'c> State<'c> {
                 path: self.path,
             });
         }
-        // The sonar's frame, for its mounting in the static transforms.
-        let sonar_frame = chosen[Stream::Beam as usize].as_ref().and_then(|name| {
-            self.topics
-                .iter()
-                .find(|(n, _)| n == name)
-                .and_then(|(_, t)| t.frame_id.clone())
-        });
+        // The sonar's and the DVL's frames, for their mountings in the
+        // static transforms.
+        let frame_of = |stream: Stream| {
+            chosen[stream as usize].as_ref().and_then(|name| {
+                self.topics
+                    .iter()
+                    .find(|(n, _)| n == name)
+                    .and_then(|(_, t)| t.frame_id.clone())
+            })
+        };
+        let sonar_frame = frame_of(Stream::Beam);
+        let dvl_frame = frame_of(Stream::Dvl);
         let mut mission = Mission::default();
         let mut uses = Vec::with_capacity(self.topics.len());
         let mut static_transforms: Vec<Transform> = Vec::new();
         let mut tf_use = None;
+        let mut tf_dynamic_use = None;
+        let constant_tf: Vec<Transform> = self.tf_pairs.constant().cloned().collect();
         for (name, topic) in self.topics {
             let used = (0..4)
                 .find(|&s| chosen[s].as_deref() == Some(name.as_str()))
@@ -461,8 +479,13 @@ impl<'c> State<'c> {
                     chosen[s as usize].as_deref().unwrap_or("")
                 ),
                 (None, None) if is_tf && name == TF_STATIC => String::new(),
+                (None, None) if is_tf && name == TF && !constant_tf.is_empty() => format!(
+                    "{} of its {} frame pairs never change: read as static transforms",
+                    constant_tf.len(),
+                    self.tf_pairs.pairs()
+                ),
                 (None, None) if is_tf => format!(
-                    "dynamic transforms are not read (the sonar mounting comes from {TF_STATIC})"
+                    "dynamic transforms are not read (the mountings come from {TF_STATIC}, or from {TF} pairs that never change)"
                 ),
                 (None, None) if topic.schema.is_empty() => "no schema".to_string(),
                 (None, None) => format!("type `{}` is not one echofield reads", topic.schema),
@@ -484,6 +507,9 @@ impl<'c> State<'c> {
             }
             if is_tf && name == TF_STATIC {
                 tf_use = Some(uses.len());
+            }
+            if is_tf && name == TF && !constant_tf.is_empty() {
+                tf_dynamic_use = Some(uses.len());
             }
             uses.push(ChannelUse {
                 topic: name,
@@ -508,11 +534,21 @@ impl<'c> State<'c> {
                     .file_stem()
                     .map(|s| s.to_string_lossy().into_owned())
                     .unwrap_or_default();
-                if let Some(i) = tf_use {
+                // `/tf` pairs that never change, after `/tf_static` (which
+                // wins for a child it has).
+                let strip = |f: &str| f.trim_start_matches('/').to_string();
+                let static_children: Vec<String> =
+                    static_transforms.iter().map(|t| strip(&t.child)).collect();
+                static_transforms.extend(
+                    constant_tf
+                        .into_iter()
+                        .filter(|t| !static_children.contains(&strip(&t.child))),
+                );
+                if let Some(i) = tf_use.or(tf_dynamic_use) {
                     let found = sonar_frame
                         .as_deref()
-                        .and_then(|f| tf::sonar_mounting(&static_transforms, f));
-                    uses[i].reason = match (&found, sonar_frame.as_deref()) {
+                        .and_then(|f| tf::mounting_of(&static_transforms, f));
+                    let sonar = match (&found, sonar_frame.as_deref()) {
                         (Some(m), _) => {
                             mission.mounting = m.apply(&mission.mounting);
                             uses[i].role = Some("mounting");
@@ -523,6 +559,25 @@ impl<'c> State<'c> {
                         ),
                         (None, None) => "no sonar topic names its frame: mounting unknown".into(),
                     };
+                    uses[i].reason = if uses[i].reason.is_empty() {
+                        sonar
+                    } else {
+                        format!("{}; {sonar}", uses[i].reason)
+                    };
+                    // The DVL's position and yaw on the vehicle, for the
+                    // dead reckoning's lever-arm compensation.
+                    let dvl = dvl_frame
+                        .as_deref()
+                        .and_then(|f| tf::mounting_of(&static_transforms, f));
+                    let dvl_topic = chosen[Stream::Dvl as usize].as_deref();
+                    if let (Some(m), Some(topic)) = (dvl, dvl_topic) {
+                        mission.mounting.vehicle_from_dvl = m.vehicle_from_frame;
+                        uses[i].role = Some("mounting");
+                        uses[i].reason = format!("{}; {}", uses[i].reason, m.describe_dvl());
+                        if let Some(u) = uses.iter_mut().find(|u| u.topic == topic) {
+                            u.reason = format!("{}; {}", u.reason, m.describe_dvl());
+                        }
+                    }
                 }
             }
         }

@@ -32,20 +32,37 @@ pub(crate) trait WireReader {
     fn u8(&mut self, field: &str) -> Result<u8, FieldError>;
     fn u16(&mut self, field: &str) -> Result<u16, FieldError>;
     fn u32(&mut self, field: &str) -> Result<u32, FieldError>;
+    fn i32(&mut self, field: &str) -> Result<i32, FieldError>;
     fn i64(&mut self, field: &str) -> Result<i64, FieldError>;
     fn f32(&mut self, field: &str) -> Result<f32, FieldError>;
     fn f64(&mut self, field: &str) -> Result<f64, FieldError>;
     fn string(&mut self, field: &str) -> Result<String, FieldError>;
     /// A `uint8[]` sequence.
     fn byte_seq(&mut self, field: &str) -> Result<Vec<u8>, FieldError>;
-    /// The element count of a variable-length array, checked against the
-    /// bytes left (each element takes at least `min_element_bytes`).
-    fn seq_len(&mut self, field: &str, min_element_bytes: usize) -> Result<usize, FieldError>;
+    /// Bytes left after the current position.
+    fn remaining(&self) -> usize;
     /// A time stamp (`time` in ROS 1, `builtin_interfaces/Time` in ROS 2).
     fn time(&mut self, field: &str) -> Result<(i64, u32), FieldError>;
     /// `std_msgs/Header`; `prefix` names it in errors (`header`,
     /// `transforms[2].header`).
     fn header(&mut self, prefix: &str) -> Result<Header, FieldError>;
+
+    /// The element count of a variable-length array (`u32` in both
+    /// formats), checked against the bytes left (each element takes at
+    /// least `min_element_bytes`) before anything is allocated.
+    fn seq_len(&mut self, field: &str, min_element_bytes: usize) -> Result<usize, FieldError> {
+        let n = self.u32(field)? as usize;
+        if n.saturating_mul(min_element_bytes) > self.remaining() {
+            return Err(FieldError::new(
+                field,
+                format!(
+                    "truncated: {n} elements of at least {min_element_bytes} bytes, {} bytes left",
+                    self.remaining()
+                ),
+            ));
+        }
+        Ok(n)
+    }
 
     fn bool(&mut self, field: &str) -> Result<bool, FieldError> {
         Ok(self.u8(field)? != 0)
@@ -65,6 +82,31 @@ pub(crate) trait WireReader {
         }
         Ok(out)
     }
+}
+
+/// The next `n` bytes of `data` from `*pos` rounded up to a multiple of
+/// `align` (CDR aligns primitives to their size; ROS 1 is packed: 1),
+/// advancing `*pos` past them; too few bytes left is an error naming
+/// `field`. Both readers take every byte through here.
+pub(crate) fn take<'a>(
+    data: &'a [u8],
+    pos: &mut usize,
+    field: &str,
+    align: usize,
+    n: usize,
+) -> Result<&'a [u8], FieldError> {
+    let start = pos.next_multiple_of(align);
+    let Some(end) = start.checked_add(n).filter(|&e| e <= data.len()) else {
+        return Err(FieldError::new(
+            field,
+            format!(
+                "truncated: need {n} bytes at offset {start}, {} left",
+                data.len().saturating_sub(start)
+            ),
+        ));
+    };
+    *pos = end;
+    Ok(&data[start..end])
 }
 
 /// Checks a nanosecond count and returns the header.
@@ -97,8 +139,14 @@ impl WireReader for CdrReader<'_> {
     fn u32(&mut self, field: &str) -> Result<u32, FieldError> {
         CdrReader::u32(self, field)
     }
+    fn i32(&mut self, field: &str) -> Result<i32, FieldError> {
+        CdrReader::i32(self, field)
+    }
     fn i64(&mut self, field: &str) -> Result<i64, FieldError> {
         CdrReader::i64(self, field)
+    }
+    fn remaining(&self) -> usize {
+        CdrReader::remaining(self)
     }
     fn f32(&mut self, field: &str) -> Result<f32, FieldError> {
         CdrReader::f32(self, field)
@@ -111,19 +159,6 @@ impl WireReader for CdrReader<'_> {
     }
     fn byte_seq(&mut self, field: &str) -> Result<Vec<u8>, FieldError> {
         CdrReader::bytes(self, field).map(<[u8]>::to_vec)
-    }
-    fn seq_len(&mut self, field: &str, min_element_bytes: usize) -> Result<usize, FieldError> {
-        let n = CdrReader::u32(self, field)? as usize;
-        if n.saturating_mul(min_element_bytes) > self.remaining() {
-            return Err(FieldError::new(
-                field,
-                format!(
-                    "truncated: {n} elements of at least {min_element_bytes} bytes, {} bytes left",
-                    self.remaining()
-                ),
-            ));
-        }
-        Ok(n)
     }
     fn time(&mut self, field: &str) -> Result<(i64, u32), FieldError> {
         let sec = CdrReader::i32(self, &format!("{field}.sec"))?;
@@ -148,24 +183,8 @@ impl<'a> Ros1Reader<'a> {
         Self { data, pos: 0 }
     }
 
-    fn remaining(&self) -> usize {
-        self.data.len() - self.pos
-    }
-
     fn take(&mut self, field: &str, n: usize) -> Result<&'a [u8], FieldError> {
-        if n > self.remaining() {
-            return Err(FieldError::new(
-                field,
-                format!(
-                    "truncated: need {n} bytes at offset {}, {} left",
-                    self.pos,
-                    self.remaining()
-                ),
-            ));
-        }
-        let out = &self.data[self.pos..self.pos + n];
-        self.pos += n;
-        Ok(out)
+        take(self.data, &mut self.pos, field, 1, n)
     }
 
     fn array<const N: usize>(&mut self, field: &str) -> Result<[u8; N], FieldError> {
@@ -185,8 +204,14 @@ impl WireReader for Ros1Reader<'_> {
     fn u32(&mut self, field: &str) -> Result<u32, FieldError> {
         Ok(u32::from_le_bytes(self.array(field)?))
     }
+    fn i32(&mut self, field: &str) -> Result<i32, FieldError> {
+        Ok(i32::from_le_bytes(self.array(field)?))
+    }
     fn i64(&mut self, field: &str) -> Result<i64, FieldError> {
         Ok(i64::from_le_bytes(self.array(field)?))
+    }
+    fn remaining(&self) -> usize {
+        self.data.len() - self.pos
     }
     fn f32(&mut self, field: &str) -> Result<f32, FieldError> {
         Ok(f32::from_le_bytes(self.array(field)?))
@@ -202,19 +227,6 @@ impl WireReader for Ros1Reader<'_> {
     fn byte_seq(&mut self, field: &str) -> Result<Vec<u8>, FieldError> {
         let n = self.u32(field)? as usize;
         self.take(field, n).map(<[u8]>::to_vec)
-    }
-    fn seq_len(&mut self, field: &str, min_element_bytes: usize) -> Result<usize, FieldError> {
-        let n = self.u32(field)? as usize;
-        if n.saturating_mul(min_element_bytes) > self.remaining() {
-            return Err(FieldError::new(
-                field,
-                format!(
-                    "truncated: {n} elements of at least {min_element_bytes} bytes, {} bytes left",
-                    self.remaining()
-                ),
-            ));
-        }
-        Ok(n)
     }
     fn time(&mut self, field: &str) -> Result<(i64, u32), FieldError> {
         let sec = self.u32(&format!("{field}.secs"))?;

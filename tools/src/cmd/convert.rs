@@ -26,7 +26,7 @@ pub enum Args {
     Miniking(SonarArgs),
     /// A ROS recording with standard messages: a ROS 2 MCAP file, a
     /// rosbag2 folder (MCAP or sqlite3 storage) or a ROS 1 bag; the sonar
-    /// mounting from /tf_static.
+    /// and DVL mountings from /tf_static.
     #[command(after_help = ROS_EXAMPLES)]
     Ros(RosArgs),
 }
@@ -34,12 +34,13 @@ pub enum Args {
 const ROS_EXAMPLES: &str = "\
 Examples:
   echofield convert ros my_rosbag2_folder --output mission.mcap
-  echofield convert ros mission.bag --topic sonar=/sonar_micron_ros --topic heading=/imu/data \\
-    --output mission.mcap
+  echofield convert ros full_dataset.bag --topic sonar=/sonar_micron --topic heading=/imu_adis_ros \\
+    --output caves.mcap
 
-Read types: sonar ping360_sonar_msgs/SonarEcho,
-marine_acoustic_msgs/RawSonarImage, sensor_msgs/LaserScan, echofield_msgs/SonarBeam;
-DVL marine_acoustic_msgs/Dvl, dvl_msgs/DVL, waterlinked_a50_ros_driver/DVL,
+Read types: sonar ping360_sonar_msgs/SonarEcho, ping360_sonar/SonarEcho (ROS 1),
+marine_acoustic_msgs/RawSonarImage, sensor_msgs/LaserScan, echofield_msgs/SonarBeam,
+cirs_girona_cala_viuda/RangeImageBeam; DVL marine_acoustic_msgs/Dvl, dvl_msgs/DVL,
+waterlinked_a50_ros_driver/DVL, cirs_girona_cala_viuda/LinkquestDvl,
 geometry_msgs/TwistWithCovarianceStamped, nav_msgs/Odometry (its twist, when chosen);
 heading sensor_msgs/Imu, geometry_msgs/QuaternionStamped; ground truth
 nav_msgs/Odometry, geometry_msgs/PoseStamped. Each topic's use is printed.";
