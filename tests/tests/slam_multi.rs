@@ -17,7 +17,7 @@
 //! ground truth, not read from the report.
 
 use echofield::calibration::{CalibrateSettings, calibrate_mission};
-use echofield::eval::aligned_position_rmse;
+use echofield::eval::{align_se2, aligned_position_rmse};
 use echofield::slam::multi::{MultiOutput, combine, outputs::write_files};
 use echofield::slam::{NoProgress, SlamConfig, SlamOutput, run_mission};
 use echofield_datasets::sim::scenes::marina;
@@ -73,6 +73,48 @@ fn merged_with_truth(out: &MultiOutput, missions: &[usize]) -> (Vec<Se2>, Vec<Se
     pairs.into_iter().unzip()
 }
 
+/// `map_from_mission` of mission `m` as the ground truth tells it: each
+/// run's own nodes fitted onto their ground truth (`truth_from_own`),
+/// then `first_from_m = truth_from_first⁻¹ ⊕ truth_from_m`.
+fn true_placement(out: &MultiOutput, m: usize) -> Se2 {
+    let truth_from_own = |run: &SlamOutput| {
+        let (p, q): (Vec<_>, Vec<_>) = run
+            .nodes
+            .iter()
+            .filter_map(|n| {
+                n.ground_truth
+                    .map(|g| (n.optimised.translation(), g.translation()))
+            })
+            .unzip();
+        align_se2(&p, &q)
+    };
+    truth_from_own(&out.runs[0])
+        .inverse()
+        .compose(&truth_from_own(&out.runs[m]))
+}
+
+/// Distance (m) and heading difference (deg) between the found and the
+/// true placement at mission `m`'s nodes (mean over them).
+fn placement_error(out: &MultiOutput, m: usize) -> (f64, f64) {
+    let found = out.placements[m]
+        .as_ref()
+        .unwrap()
+        .map_from_mission
+        .unwrap();
+    let truth = true_placement(out, m);
+    let nodes = &out.runs[m].nodes;
+    let d: f64 = nodes
+        .iter()
+        .map(|n| {
+            let (a, b) = (found.compose(&n.optimised), truth.compose(&n.optimised));
+            (a.translation() - b.translation()).norm()
+        })
+        .sum::<f64>()
+        / nodes.len() as f64;
+    let dtheta = echofield_graph::se2::wrap_angle(found.theta() - truth.theta()).to_degrees();
+    (d, dtheta)
+}
+
 #[test]
 fn two_marina_missions_with_different_routes_and_starts_merge_within_0_3_m() {
     let a = marina_seed_1().clone();
@@ -101,6 +143,9 @@ fn two_marina_missions_with_different_routes_and_starts_merge_within_0_3_m() {
     let ate_b = aligned_position_rmse(&estimate_b, &truth_b);
     eprintln!("merged ATE {ate:.3} m (mission 2 alone in the merged graph {ate_b:.3} m)");
     assert!(ate <= 0.3, "merged ATE {ate} m");
+    let (d, dtheta) = placement_error(&out, 1);
+    eprintln!("placement off the truth by {d:.3} m, {dtheta:.2}° (mean over mission 2's nodes)");
+    assert!(d <= 1.0 && dtheta.abs() <= 1.0, "{d} m, {dtheta}°");
     // The report's figure is the same computation.
     assert!((report.merged_ate_rmse_m.unwrap() - ate).abs() < 1e-9);
 
@@ -201,6 +246,10 @@ fn the_real_st_pere_halves_merge() {
         "real St Pere halves merged: ATE against DGPS {ate:.3} m over {} nodes, {} cross-mission loops",
         estimate.len(),
         report.cross_loops_accepted
+    );
+    let (d, dtheta) = placement_error(&out, 1);
+    eprintln!(
+        "placement off the truth by {d:.3} m, {dtheta:.2}° (mean over the second half's nodes)"
     );
     assert!(report.cross_loops_accepted >= 5);
     assert!(ate <= 1.2, "merged ATE {ate} m");

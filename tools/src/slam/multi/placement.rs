@@ -69,9 +69,11 @@ pub const AGREE_M: f64 = 1.5;
 pub const AGREE_RAD: f64 = 3.0 * PI / 180.0;
 /// A probe counts only when this share of its points falls on the map's
 /// coverage and their mean field value (the fit) is at least
-/// [`MIN_FIT`] at its best pose.
+/// [`MIN_FIT`] at its best pose. Probes of a mission in another place fit
+/// their best wrong pose at about 0.5; the agreement of several probes,
+/// not this threshold, is what tells a right placement from a wrong one.
 const MIN_COVERAGE: f64 = 0.5;
-pub const MIN_FIT: f64 = 0.5;
+pub const MIN_FIT: f64 = 0.6;
 
 /// One probe's search.
 #[derive(Clone, Debug, Serialize)]
