@@ -69,9 +69,10 @@ pub const AGREE_M: f64 = 1.5;
 pub const AGREE_RAD: f64 = 3.0 * PI / 180.0;
 /// A probe counts only when this share of its points falls on the map's
 /// coverage and their mean field value (the fit) is at least
-/// [`MIN_FIT`] at its best pose. Probes of a mission in another place fit
-/// their best wrong pose at about 0.5; the agreement of several probes,
-/// not this threshold, is what tells a right placement from a wrong one.
+/// [`MIN_FIT`] at its best pose. The floor only drops probes that fit
+/// nowhere; the agreement of several probes, not this threshold, is what
+/// tells a right placement from a wrong one (a wrong pose on a cluttered
+/// map can fit as well as the right one).
 const MIN_COVERAGE: f64 = 0.5;
 pub const MIN_FIT: f64 = 0.6;
 
@@ -209,18 +210,18 @@ fn probes(run: &SlamOutput, own: &[Se2]) -> Vec<Probe> {
             let middle_from_world = own[middle].inverse();
             let mut points = Vec::new();
             let mut nodes = 0;
-            for k in middle - half..=middle + half {
-                if run.scans[k].is_empty() || run.nodes.get(k).is_some_and(|r| r.in_dvl_gap) {
+            let window = middle - half..=middle + half;
+            for ((k, pose), scan) in window
+                .clone()
+                .zip(&own[window.clone()])
+                .zip(&run.scans[window])
+            {
+                if scan.is_empty() || run.nodes.get(k).is_some_and(|r| r.in_dvl_gap) {
                     continue;
                 }
                 nodes += 1;
-                let middle_from_k = middle_from_world.compose(&own[k]);
-                points.extend(
-                    run.scans[k]
-                        .points
-                        .iter()
-                        .map(|p| middle_from_k.transform_point(p)),
-                );
+                let middle_from_k = middle_from_world.compose(pose);
+                points.extend(scan.points.iter().map(|p| middle_from_k.transform_point(p)));
             }
             Probe {
                 node: middle,
