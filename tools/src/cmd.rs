@@ -15,6 +15,7 @@ pub mod localize;
 pub mod matching;
 pub mod optimize;
 pub mod run;
+pub mod run_multi;
 pub mod simulate;
 
 /// `-q`: no progress bar (set once by `main` before any command runs).

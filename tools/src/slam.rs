@@ -59,6 +59,7 @@ pub mod evaluation;
 pub mod health;
 mod input_checks;
 pub mod loops;
+pub mod multi;
 pub mod navigation_rate;
 pub mod node_record;
 pub mod odometry_scale;

@@ -51,6 +51,10 @@ Examples:
   # rotation and the ATE of the emitted estimates to report.json → online
   echofield run marina.mcap --online --output out/marina-online
 
+  # Two missions of one harbour merged into one map: each is run, the
+  # second placed on the first's map from its scans, then one graph is solved
+  echofield run survey1.mcap survey2.mcap --output out/harbour
+
   # Make a mission to try it on
   echofield simulate --scenario marina --seed 1 --output marina.mcap
 
@@ -79,6 +83,13 @@ pub struct Args {
     /// log folder. ROS recordings: standard messages (the help of
     /// convert ros lists them), the sonar mounting from /tf_static.
     pub mission: PathBuf,
+    /// More missions of the same place (same kinds of input as MISSION):
+    /// each is run on its own, placed on the map of the missions before it
+    /// by a global search of its scans (no shared start pose is assumed),
+    /// and merged with them into one pose graph (see "Several missions"
+    /// in the README). The outputs are then those of `slam::multi`.
+    #[arg(value_name = "MORE_MISSIONS")]
+    pub more_missions: Vec<PathBuf>,
     /// ROS input: the topic that feeds a stream, as ROLE=/name (roles:
     /// sonar, dvl, heading, ground_truth); repeat for several. A stream
     /// with one topic of a type echofield reads needs none; a topic chosen
@@ -144,6 +155,9 @@ pub(crate) fn print_channels(channels: &[ChannelUse]) {
 }
 
 pub fn run(args: Args) -> Result<()> {
+    if !args.more_missions.is_empty() {
+        return super::run_multi::run(args);
+    }
     let mut inputs = vec![args.mission.as_path()];
     inputs.extend(args.keyframes.as_deref());
     let run_info = RunInfo::start("run", &inputs, args.config.as_deref(), &args.output);

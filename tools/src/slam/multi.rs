@@ -1,0 +1,285 @@
+//! Several missions, one map (`echofield run A.mcap B.mcap ... --output
+//! DIR`, issue 38 item 3).
+//!
+//! 1. Each mission is run on its own ([`run_mission`]): its own dead
+//!    reckoning, its own chain of sequential matches, its own loops and
+//!    solve, in its own world frame.
+//! 2. Each later mission is placed on the map of the missions placed
+//!    before it ([`placement`]): a global search of several probes of its
+//!    scans over the map's likelihood field, accepted only when enough
+//!    probes agree. No shared start pose is assumed; only the heading
+//!    reference (the compass) is shared.
+//! 3. The placed missions become one graph ([`merge`]): cross-mission loop
+//!    candidates are matched and checked like a run's loops, and the graph
+//!    is solved with only the first mission's first node fixed.
+//!
+//! A mission that cannot be placed is left out of the merged graph and
+//! keeps its own result (in its own frame); the report says so, and a
+//! warning is logged. Ground truth: when every mission has it, in one
+//! frame (the same simulated world, the same DGPS plane), the merged
+//! nodes are evaluated against it together (one SE(2) fit over all
+//! missions' nodes), which tests the relative placement; each mission is
+//! also evaluated alone.
+
+pub mod merge;
+pub mod outputs;
+pub mod placement;
+
+use crate::eval::aligned_position_rmse;
+use crate::slam::result::OutliersReport;
+use crate::slam::{ProgressSink, SlamConfig, SlamOutput, run_mission};
+use anyhow::{Context, Result};
+use echofield_backend::SolveSummary;
+use echofield_frontend::sensors::Mission;
+use echofield_graph::Se2;
+use merge::{Merged, merge};
+use placement::{MapFields, Placement, place};
+use serde::Serialize;
+
+/// What a run of several missions produced.
+pub struct MultiOutput {
+    /// Each mission's own run, in input order (its own frame).
+    pub runs: Vec<SlamOutput>,
+    /// Each mission's placement search (`None` for the first mission,
+    /// which defines the map frame).
+    pub placements: Vec<Option<Placement>>,
+    /// The merged graph, when at least one later mission was placed.
+    pub merged: Option<Merged>,
+    pub report: MultiReport,
+}
+
+impl MultiOutput {
+    /// Mission `m`'s node poses as written: in the merged graph (map
+    /// frame) when it is a member, else its own run's optimised poses
+    /// (its own frame).
+    pub fn poses(&self, m: usize) -> Vec<Se2> {
+        let run = &self.runs[m];
+        self.merged
+            .as_ref()
+            .and_then(|g| g.poses_of(m, run.nodes.len()))
+            .unwrap_or_else(|| run.nodes.iter().map(|n| n.optimised).collect())
+    }
+}
+
+/// `report.json` of a run of several missions.
+#[derive(Clone, Debug, Serialize)]
+pub struct MultiReport {
+    /// Who wrote it (set by the command).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub run: Option<crate::slam::RunInfo>,
+    pub missions: Vec<MissionReport>,
+    /// Whether at least one later mission was merged with the first.
+    pub merged: bool,
+    /// Nodes of the merged graph (0 when nothing was merged).
+    pub merged_nodes: usize,
+    /// Cross-mission loop candidates and accepted loops.
+    pub cross_loop_candidates: usize,
+    pub cross_loops_accepted: usize,
+    /// ATE (SE(2)-aligned position RMSE over every merged node at once
+    /// against its ground truth, m), when every merged mission has ground
+    /// truth at its nodes: the test of the relative placement.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub merged_ate_rmse_m: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub merged_solve: Option<SolveSummary>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub merged_outliers: Option<OutliersReport>,
+    /// Wall time, s.
+    pub time_s: f64,
+    pub warnings: Vec<String>,
+    pub definitions: Definitions,
+}
+
+/// Per mission.
+#[derive(Clone, Debug, Serialize)]
+pub struct MissionReport {
+    /// 1-based, as in the output files' `mission` column.
+    pub mission: usize,
+    pub name: String,
+    pub nodes: usize,
+    /// Its own run's loops.
+    pub loops_accepted: usize,
+    /// Its own run's ATE and dead reckoning's, m (as a single run).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ate_rmse_m: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ate_rmse_dead_reckoning_m: Option<f64>,
+    /// Its nodes in the merged graph against its ground truth (fitted
+    /// alone), m.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub merged_ate_rmse_m: Option<f64>,
+    /// In the merged graph.
+    pub merged: bool,
+    /// Its own run's health verdict.
+    pub health: String,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub placement: Option<Placement>,
+}
+
+/// What the report's figures mean.
+#[derive(Clone, Debug, Serialize)]
+pub struct Definitions {
+    pub merged_ate_rmse_m: &'static str,
+    pub placement: &'static str,
+}
+
+const DEFINITIONS: Definitions = Definitions {
+    merged_ate_rmse_m: "position RMSE of every merged node (all missions) after one SE(2) fit onto the ground truth at the node stamps, m",
+    placement: "map_from_mission [x_m, y_m, theta_rad]: the mission's world frame in the first mission's; found by probes of several consecutive scans searched over the map's likelihood field, accepted when at least 3 usable probes agree",
+};
+
+/// Runs every mission and merges them (see the module doc). Errors: a
+/// mission's own run failing (naming it), a failed merged solve.
+pub fn run_missions(
+    missions: &[Mission],
+    config: &SlamConfig,
+    progress: &dyn ProgressSink,
+) -> Result<MultiOutput> {
+    let start = std::time::Instant::now();
+    let mut runs = Vec::with_capacity(missions.len());
+    for (m, mission) in missions.iter().enumerate() {
+        let run = run_mission(mission, config, progress)
+            .with_context(|| format!("mission {} ({})", m + 1, mission.name))?;
+        runs.push(run);
+    }
+    let mut output = combine(runs, config)?;
+    output.report.time_s = start.elapsed().as_secs_f64();
+    Ok(output)
+}
+
+/// Steps 2-3 of the module doc on finished `runs` (the first defines the
+/// map frame). Errors: a failed cross-mission match or merged solve.
+pub fn combine(runs: Vec<SlamOutput>, config: &SlamConfig) -> Result<MultiOutput> {
+    let start = std::time::Instant::now();
+    let mut warnings = Vec::new();
+    let mut transforms: Vec<Option<Se2>> = vec![None; runs.len()];
+    let mut placements: Vec<Option<Placement>> = vec![None; runs.len()];
+    if let Some(t) = transforms.first_mut() {
+        *t = Some(Se2::identity());
+    }
+    for m in 1..runs.len() {
+        let own: Vec<Se2> = runs[m].graph.poses();
+        let placed: Vec<(usize, Vec<Se2>)> = (0..m)
+            .filter_map(|i| {
+                transforms[i].map(|t| {
+                    (
+                        i,
+                        runs[i].graph.poses().iter().map(|p| t.compose(p)).collect(),
+                    )
+                })
+            })
+            .collect();
+        let map_runs: Vec<(&SlamOutput, &[Se2])> = placed
+            .iter()
+            .map(|(i, p)| (&runs[*i], p.as_slice()))
+            .collect();
+        let fields = MapFields::build(&map_runs).context("the map for the placement")?;
+        let placement = place(&fields, &runs[m], &own);
+        if placement.map_from_mission.is_none() {
+            let message = format!(
+                "mission {} ({}) could not be placed on the map of the missions before it ({} of {} probes agree, {} needed): it is not merged; its own result is written in its own frame",
+                m + 1,
+                runs[m].mission_name,
+                placement.agreeing,
+                placement.probes.len(),
+                placement::MIN_AGREEING
+            );
+            tracing::warn!("{message}");
+            warnings.push(message);
+        }
+        transforms[m] = placement.map_from_mission;
+        placements[m] = Some(placement);
+    }
+    let merged = if transforms.iter().skip(1).any(Option::is_some) {
+        let merged = merge(&runs, &transforms, config)?;
+        if merged.accepted_cross() == 0 {
+            let message = "the missions were placed but no cross-mission loop was accepted: the merged graph rests on the placement alone".to_string();
+            tracing::warn!("{message}");
+            warnings.push(message);
+        }
+        Some(merged)
+    } else {
+        None
+    };
+    let mut output = MultiOutput {
+        runs,
+        placements,
+        merged,
+        report: MultiReport {
+            run: None,
+            missions: Vec::new(),
+            merged: false,
+            merged_nodes: 0,
+            cross_loop_candidates: 0,
+            cross_loops_accepted: 0,
+            merged_ate_rmse_m: None,
+            merged_solve: None,
+            merged_outliers: None,
+            time_s: 0.0,
+            warnings,
+            definitions: DEFINITIONS,
+        },
+    };
+    fill_report(&mut output);
+    output.report.time_s = start.elapsed().as_secs_f64();
+    Ok(output)
+}
+
+/// `(estimate, truth)` of the nodes of `run` at `poses` that have ground
+/// truth.
+fn with_truth(run: &SlamOutput, poses: &[Se2]) -> (Vec<Se2>, Vec<Se2>) {
+    run.nodes
+        .iter()
+        .zip(poses)
+        .filter_map(|(n, p)| n.ground_truth.map(|g| (*p, g)))
+        .unzip()
+}
+
+fn fill_report(output: &mut MultiOutput) {
+    let mut missions = Vec::new();
+    let (mut all_estimate, mut all_truth) = (Vec::new(), Vec::new());
+    let mut every_has_truth = true;
+    for (m, run) in output.runs.iter().enumerate() {
+        let member = output
+            .merged
+            .as_ref()
+            .is_some_and(|g| g.members.iter().any(|(i, _)| *i == m));
+        let poses = output.poses(m);
+        let merged_ate = if member {
+            let (e, t) = with_truth(run, &poses);
+            if e.len() < 2 {
+                every_has_truth = false;
+            }
+            all_estimate.extend(e.iter().copied());
+            all_truth.extend(t.iter().copied());
+            (e.len() >= 2).then(|| aligned_position_rmse(&e, &t))
+        } else {
+            None
+        };
+        missions.push(MissionReport {
+            mission: m + 1,
+            name: run.mission_name.clone(),
+            nodes: run.nodes.len(),
+            loops_accepted: run.report.loops_accepted,
+            ate_rmse_m: run.report.ate_rmse_m,
+            ate_rmse_dead_reckoning_m: run.report.ate_rmse_dead_reckoning_m,
+            merged_ate_rmse_m: merged_ate,
+            merged: member,
+            health: format!("{:?}", run.report.health.verdict).to_lowercase(),
+            placement: output.placements[m].clone(),
+        });
+    }
+    let report = &mut output.report;
+    report.missions = missions;
+    if let Some(merged) = &output.merged {
+        report.merged = true;
+        report.merged_nodes = merged.graph.node_count();
+        report.cross_loop_candidates = merged.cross_loops.len();
+        report.cross_loops_accepted = merged.accepted_cross();
+        report.merged_solve = Some(merged.summary.clone());
+        report.merged_outliers = Some(merged.outliers.clone());
+        if every_has_truth && all_estimate.len() >= 2 {
+            report.merged_ate_rmse_m = Some(aligned_position_rmse(&all_estimate, &all_truth));
+        }
+    }
+}

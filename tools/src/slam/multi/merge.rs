@@ -1,0 +1,288 @@
+//! One pose graph over several placed missions: each mission's own graph
+//! (its chain of odometry and sequential edges, its loops, its heading
+//! priors) with node ids offset, cross-mission loop candidates matched and
+//! checked as the run's loops are, and one robust solve.
+//!
+//! Frames: the merged graph is in the first mission's world frame (its
+//! node 0 stays fixed, as in a single run). A later mission's nodes start
+//! at `map_from_mission ⊕ world_from_node` (its placement, see
+//! [`super::placement`]) and are free: only the cross-mission loops tie
+//! them to the first mission. Its heading priors are turned by the
+//! placement's heading with it.
+//!
+//! Cross-mission candidates: each node of a later mission against the
+//! [`CROSS_PER_NODE`] nearest nodes of earlier placed missions within
+//! [`CROSS_RADIUS_M`] of it under the placement, matched `S_k` vs `I_j`
+//! within the placement's uncertainty and checked by
+//! [`echofield_frontend::loops::checks::examine`] (quality, covariance,
+//! window edge, the symmetric match). A match that passes but moves the
+//! node more than [`CROSS_AGREE_M`] / [`CROSS_AGREE_RAD`] from the
+//! placement is rejected as `inconsistent`: the placement was verified by
+//! several probes that agree, a single match that disagrees with it is the
+//! suspect. The final solve may still switch accepted loops off
+//! (`robust_kernel`), as in a single run.
+
+use crate::slam::result::OutliersReport;
+use crate::slam::{SlamConfig, SlamOutput};
+use anyhow::{Context, Result};
+use echofield_backend::{SolveSummary, optimize_robust};
+use echofield_frontend::loops::checks::{Candidate, examine};
+use echofield_frontend::loops::records::{LoopRecord, RejectReason};
+use echofield_frontend::matcher::SearchWindow;
+use echofield_frontend::nodes::NodeData;
+use echofield_graph::se2::wrap_angle;
+use echofield_graph::{Edge, EdgeKind, PoseGraph, Se2};
+use nalgebra::{Matrix3, Vector3};
+use rayon::prelude::*;
+use std::collections::HashSet;
+
+/// Nodes of earlier missions each node of a later mission is matched
+/// against, at most.
+pub const CROSS_PER_NODE: usize = 2;
+/// Largest distance between two nodes under the placement for a
+/// cross-mission candidate, m.
+pub const CROSS_RADIUS_M: f64 = 10.0;
+/// Standard deviation of a placement, per axis (m, m, rad), as the prior
+/// covariance of the cross-mission candidates; their window is
+/// `loops.n_sigma` of it, clamped as the run's loop windows.
+const PLACEMENT_SIGMA: [f64; 3] = [0.5, 0.5, 0.035];
+/// A cross-mission match may move its node this far from the placement.
+pub const CROSS_AGREE_M: f64 = 1.5;
+pub const CROSS_AGREE_RAD: f64 = 0.06;
+
+/// A loop between two missions' nodes (or within one: the runs' own).
+#[derive(Clone, Debug)]
+pub struct MergedLoop {
+    pub from_mission: usize,
+    pub from_node: usize,
+    pub to_mission: usize,
+    pub to_node: usize,
+    /// The record, its `from` / `to` the merged graph's ids.
+    pub record: LoopRecord,
+}
+
+/// The merged graph and what went into it.
+pub struct Merged {
+    /// The solved graph; mission `m`'s node `k` has id `offsets[m] + k`.
+    pub graph: PoseGraph,
+    /// Missions in the graph, in order, with their first id.
+    pub members: Vec<(usize, usize)>,
+    /// Every cross-mission candidate, in the order examined.
+    pub cross_loops: Vec<MergedLoop>,
+    pub summary: SolveSummary,
+    pub outliers: OutliersReport,
+}
+
+impl Merged {
+    /// The solved poses of mission `m` (map frame), `None` when it is not
+    /// in the graph.
+    pub fn poses_of(&self, mission: usize, nodes: usize) -> Option<Vec<Se2>> {
+        let &(_, first) = self.members.iter().find(|(m, _)| *m == mission)?;
+        let poses = self.graph.poses();
+        Some(poses[first..first + nodes].to_vec())
+    }
+
+    /// Accepted cross-mission loops.
+    pub fn accepted_cross(&self) -> usize {
+        self.cross_loops
+            .iter()
+            .filter(|l| l.record.accepted)
+            .count()
+    }
+}
+
+/// The nodes of a run as the loop checks take them.
+fn node_data(run: &SlamOutput) -> Vec<NodeData> {
+    run.nodes
+        .iter()
+        .zip(run.scans.iter().zip(&run.images))
+        .map(|(n, (scan, image))| NodeData {
+            rotation_index: n.rotation_index,
+            stamp_s: n.stamp_s,
+            beams: n.beams.clone(),
+            dead_reckoning: n.dead_reckoning,
+            scan: scan.clone(),
+            image: image.clone(),
+            footprint_m: super::placement::footprint_m(&scan.points),
+            in_dvl_gap: n.in_dvl_gap,
+        })
+        .collect()
+}
+
+/// Merges the `runs` whose `placements` (`map_from_mission`) are known
+/// into one graph and solves it (see the module doc). The first run must
+/// be placed (at the identity). Errors: a failed match or solve.
+pub fn merge(
+    runs: &[SlamOutput],
+    placements: &[Option<Se2>],
+    config: &SlamConfig,
+) -> Result<Merged> {
+    let mut members = Vec::new();
+    let mut graph = PoseGraph::new();
+    let mut nodes: Vec<NodeData> = Vec::new();
+    let mut placed_poses: Vec<Se2> = Vec::new();
+    let mut mission_of: Vec<(usize, usize)> = Vec::new();
+    for (m, (run, placement)) in runs.iter().zip(placements).enumerate() {
+        let Some(map_from_mission) = placement else {
+            continue;
+        };
+        let first = nodes.len();
+        members.push((m, first));
+        add_run(&mut graph, run, map_from_mission, first, m == members[0].0)?;
+        nodes.extend(node_data(run));
+        placed_poses.extend(
+            run.graph
+                .poses()
+                .iter()
+                .map(|p| map_from_mission.compose(p)),
+        );
+        mission_of.extend((0..run.nodes.len()).map(|k| (m, k)));
+    }
+    let candidates = cross_candidates(&members, &placed_poses, &nodes, config);
+    let records: Vec<LoopRecord> = candidates
+        .par_iter()
+        .map(|c| examine(c, c.to, &nodes, &config.matcher, &config.loops))
+        .collect::<Result<_, _>>()
+        .context("cross-mission loop matches")?;
+    let mut cross_loops = Vec::with_capacity(records.len());
+    for mut record in records {
+        if record.rejected_by.is_none()
+            && let Some(z) = record.measurement
+        {
+            let (from, to) = (record.from as usize, record.to as usize);
+            let measured = placed_poses[from].compose(&z);
+            let placed = placed_poses[to];
+            let agrees = (measured.x() - placed.x()).hypot(measured.y() - placed.y())
+                <= CROSS_AGREE_M
+                && wrap_angle(measured.theta() - placed.theta()).abs() <= CROSS_AGREE_RAD;
+            if agrees {
+                record.accepted = true;
+            } else {
+                record.rejected_by = Some(RejectReason::Inconsistent);
+            }
+        }
+        let (from_mission, from_node) = mission_of[record.from as usize];
+        let (to_mission, to_node) = mission_of[record.to as usize];
+        cross_loops.push(MergedLoop {
+            from_mission,
+            from_node,
+            to_mission,
+            to_node,
+            record,
+        });
+    }
+    for l in cross_loops.iter().filter(|l| l.record.accepted) {
+        let r = &l.record;
+        let (Some(z), Some(cov)) = (r.measurement, r.covariance) else {
+            continue;
+        };
+        let Some(information) = cov.try_inverse() else {
+            continue;
+        };
+        graph.add_edge(Edge::new(EdgeKind::Loop, r.from, r.to, z, information))?;
+    }
+    let summary = optimize_robust(&mut graph, &config.backend.solver, &config.backend.outliers)
+        .context("the merged graph's solve")?;
+    let switched: HashSet<(u64, u64)> = summary
+        .switched_off
+        .iter()
+        .map(|s| (s.from, s.to))
+        .collect();
+    for l in &mut cross_loops {
+        if l.record.accepted && switched.contains(&(l.record.from, l.record.to)) {
+            l.record.accepted = false;
+            l.record.rejected_by = Some(RejectReason::RobustKernel);
+        }
+    }
+    Ok(Merged {
+        graph,
+        members,
+        cross_loops,
+        outliers: OutliersReport::from(&summary),
+        summary: summary.least_squares,
+    })
+}
+
+/// Adds `run`'s graph with ids offset by `first`, its poses and priors
+/// turned by `map_from_mission`; its fixed node stays fixed only for the
+/// first mission (`anchor`).
+fn add_run(
+    graph: &mut PoseGraph,
+    run: &SlamOutput,
+    map_from_mission: &Se2,
+    first: usize,
+    anchor: bool,
+) -> Result<()> {
+    let offset = first as u64;
+    for node in run.graph.nodes() {
+        let mut node = node.clone();
+        node.id += offset;
+        node.pose = map_from_mission.compose(&node.pose);
+        graph.add_node(node)?;
+    }
+    for edge in run.graph.edges() {
+        let mut edge = edge.clone();
+        edge.from += offset;
+        edge.to += offset;
+        if edge.kind == EdgeKind::Prior {
+            edge.measurement = map_from_mission.compose(&edge.measurement);
+        }
+        graph.add_edge(edge)?;
+    }
+    if anchor {
+        for id in run.graph.fixed().iter().copied().collect::<Vec<_>>() {
+            graph.fix(id + offset)?;
+        }
+    }
+    Ok(())
+}
+
+/// The cross-mission candidates (see the module doc), in the order of
+/// the later mission's nodes, the nearer earlier node first.
+fn cross_candidates(
+    members: &[(usize, usize)],
+    poses: &[Se2],
+    nodes: &[NodeData],
+    config: &SlamConfig,
+) -> Vec<Candidate> {
+    let covariance = Matrix3::from_diagonal(&Vector3::from(PLACEMENT_SIGMA.map(|s| s * s)));
+    let n_sigma = config.loops.n_sigma;
+    let raw_window = SearchWindow::new(
+        n_sigma * PLACEMENT_SIGMA[0],
+        n_sigma * PLACEMENT_SIGMA[1],
+        n_sigma * PLACEMENT_SIGMA[2],
+    );
+    let mut out = Vec::new();
+    for (i, &(_, first)) in members.iter().enumerate().skip(1) {
+        let end = members.get(i + 1).map_or(nodes.len(), |(_, f)| *f);
+        for to in first..end {
+            if !nodes[to].matchable() {
+                continue;
+            }
+            let mut near: Vec<(f64, usize)> = (0..first)
+                .filter(|&j| nodes[j].matchable())
+                .map(|j| {
+                    let d = (poses[j].x() - poses[to].x()).hypot(poses[j].y() - poses[to].y());
+                    (d, j)
+                })
+                .filter(|(d, _)| *d <= CROSS_RADIUS_M)
+                .collect();
+            near.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            for &(_, from) in near.iter().take(CROSS_PER_NODE) {
+                out.push(Candidate {
+                    from,
+                    to,
+                    prior: poses[from].inverse().compose(&poses[to]),
+                    prior_covariance: covariance,
+                    // Not predicted (no footprint model across missions):
+                    // below every escalation threshold.
+                    predicted_overlap: 0.0,
+                    raw_window,
+                    wide: false,
+                    densify: false,
+                });
+            }
+        }
+    }
+    out
+}
