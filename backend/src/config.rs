@@ -99,14 +99,26 @@ pub struct SolverConfig {
     pub max_iterations: usize,
     /// Converged when an accepted step lowers the cost by less than this
     /// fraction of the cost (dimensionless). Default: 1e-10.
+    ///
+    /// Not a config key (`#[serde(skip)]`: config files keep the default;
+    /// library callers may set it): a numerical convergence threshold, not a property of a mission.
+    #[serde(skip)]
     pub relative_cost_tolerance: f64,
     /// Converged when the step norm `‖δ‖` (metres and radians mixed, as in
     /// g2o and Ceres) is below `step_tolerance · (‖x‖ + step_tolerance)`.
     /// Default: 1e-10.
+    ///
+    /// Not a config key (`#[serde(skip)]`: config files keep the default;
+    /// library callers may set it): a numerical convergence threshold, not a property of a mission.
+    #[serde(skip)]
     pub step_tolerance: f64,
     /// First Levenberg-Marquardt damping λ, relative to the diagonal of the
     /// normal equations (dimensionless). Default: 1e-10, i.e. start with
     /// (almost) Gauss-Newton steps; λ grows only when a step fails.
+    ///
+    /// Not a config key (`#[serde(skip)]`: config files keep the default;
+    /// library callers may set it): Levenberg-Marquardt adapts λ from its first failed step.
+    #[serde(skip)]
     pub initial_lambda: f64,
     /// Threads of the sparse factorisation: 1 runs sequentially, more uses
     /// faer's rayon parallelism. Default: 1.

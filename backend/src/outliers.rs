@@ -82,9 +82,17 @@ pub struct OutlierConfig {
     /// Nodes added per growth step. Smaller steps judge each loop against
     /// less drift and cost more solves (the work grows as the square of
     /// the node count over the step). Default: 100.
+    ///
+    /// Not a config key (`#[serde(skip)]`: config files keep the default;
+    /// library callers may set it): the schedule of the robust solve, not a property of a mission.
+    #[serde(skip)]
     pub growth_step_nodes: usize,
     /// Iteration cap of each growth step (the final solves use the solver's
     /// `max_iterations`). Default: 10.
+    ///
+    /// Not a config key (`#[serde(skip)]`: config files keep the default;
+    /// library callers may set it): the schedule of the robust solve, not a property of a mission.
+    #[serde(skip)]
     pub growth_iterations: usize,
     /// χ² (eᵀΩe, dimensionless) above which a suspect edge is switched off
     /// after the robust solve, and at or below which (as its own χ² or its
@@ -103,18 +111,34 @@ pub struct OutlierConfig {
     pub final_kernel: bool,
     /// Least-squares solves after the robust one (each may switch edges
     /// back on). Default: 10.
+    ///
+    /// Not a config key (`#[serde(skip)]`: config files keep the default;
+    /// library callers may set it): the schedule of the robust solve, not a property of a mission.
+    #[serde(skip)]
     pub max_rounds: usize,
     /// Two suspect edges can support each other when their ends lie at most
     /// this many nodes apart along the trusted chain (node order). Default:
     /// 10.
+    ///
+    /// Not a config key (`#[serde(skip)]`: config files keep the default;
+    /// library callers may set it): the reach of mutual support along the chain, a property of the method.
+    #[serde(skip)]
     pub support_window_nodes: usize,
     /// The cycle of two suspect edges and the chain between their ends is
     /// consistent when its χ² (against the propagated covariance) is at most
     /// this. Default: 11.34, the 99% quantile of χ² with 3 degrees of
     /// freedom.
+    ///
+    /// Not a config key (`#[serde(skip)]`: config files keep the default;
+    /// library callers may set it): a test level (99% of χ² with 3 degrees of freedom), not a tuning value.
+    #[serde(skip)]
     pub support_chi2: f64,
     /// A suspect edge with at least this many consistent partners is
     /// believed during the growth (solved without a kernel). Default: 3.
+    ///
+    /// Not a config key (`#[serde(skip)]`: config files keep the default;
+    /// library callers may set it): the partners that make a loop believed, a property of the method.
+    #[serde(skip)]
     pub min_support: usize,
 }
 

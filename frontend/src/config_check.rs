@@ -24,8 +24,22 @@ pub fn check_range(field: &str, value: f64, lo: f64, hi: f64) -> Result<(), Fron
     }
 }
 
+/// Checks that `value` is finite and > 0: a size, a noise or a scale
+/// that divides or multiplies, which 0, a negative value or NaN would turn
+/// into an empty, infinite or undefined result.
+pub fn check_positive(field: &str, value: f64) -> Result<(), FrontendError> {
+    if value.is_finite() && value > 0.0 {
+        Ok(())
+    } else {
+        Err(FrontendError::config(
+            field,
+            format!("must be finite and > 0, got {value}"),
+        ))
+    }
+}
+
 /// Checks a window's values, naming the element and its axis
-/// (`loops.min_window[2] (theta_rad)`): finite, `0 <= x_m, y_m <=`
+/// (`loops.gate.min_window[2] (theta_rad)`): finite, `0 <= x_m, y_m <=`
 /// [`MAX_WINDOW_M`], `0 <= theta_rad <= π`.
 pub fn check_window(field: &str, window: &SearchWindow) -> Result<(), FrontendError> {
     check_range(&axis_field(field, 0), window.x_m, 0.0, MAX_WINDOW_M)?;

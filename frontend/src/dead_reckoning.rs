@@ -117,15 +117,27 @@ pub struct DeadReckoningConfig {
     /// good samples when the vehicle manoeuvres against the constant-velocity
     /// model (measured: EXPERIMENTS.md § Dead reckoning). 0 turns the
     /// gate off.
+    ///
+    /// Not a config key (`#[serde(skip)]`: config files keep the default;
+    /// library callers may set it): a test level (χ² with 2 degrees of freedom) against gross bottom-lock errors, not a property of a vehicle.
+    #[serde(skip)]
     pub dvl_gate_chi2: f64,
     /// After this many consecutive gated-out samples the next one is used
     /// whatever its innovation, so that a real change of velocity the
     /// model did not expect cannot lock the filter out. Default 3.
+    ///
+    /// Not a config key (`#[serde(skip)]`: config files keep the default;
+    /// library callers may set it): a safeguard of the gate against locking the filter out, not a property of a vehicle.
+    #[serde(skip)]
     pub dvl_gate_max_consecutive: usize,
     /// Innovation-based adaptation of the DVL noise: the noise per axis is
     /// estimated from the innovations over about this many samples, and
     /// used when larger than the configured one (which stays a floor).
     /// 0 turns it off. Default 30 (about 20 s of the St Pere DVL).
+    ///
+    /// Not a config key (`#[serde(skip)]`: config files keep the default;
+    /// library callers may set it): the adaptation's memory; the noise a user sets is `dvl_velocity_noise_mps`, which stays the floor.
+    #[serde(skip)]
     pub dvl_noise_adaptation_samples: usize,
     /// Use the covariance a DVL sample carries (its x-y block, in (m/s)²)
     /// instead of `dvl_velocity_noise_mps`. Default true.
@@ -142,7 +154,8 @@ pub struct DeadReckoningConfig {
     /// Standard deviation of one heading measurement, rad. Default 0.02.
     pub heading_noise_rad: f64,
     /// Standard deviation of one yaw-rate sample, rad/s. Default 0.01. A
-    /// floor when `yaw_rate_check_window_s` is on.
+    /// floor of the noise the yaw-rate check (`yaw_rate_check_window_s`)
+    /// estimates from the data.
     pub yaw_rate_noise_radps: f64,
     /// Window of the yaw-rate check, s: before filtering, the integrated
     /// yaw rates are compared with the heading changes over consecutive
@@ -153,13 +166,25 @@ pub struct DeadReckoningConfig {
     /// then no longer drags the heading away from the headings in turns
     /// (the real St Pere MTi is such a unit: README.md § Accuracy). 0 turns the
     /// check off. Default 1.
+    ///
+    /// Not a config key (`#[serde(skip)]`: config files keep the default;
+    /// library callers may set it): the check estimates the gyro's noise from the data; the noise a user sets is `yaw_rate_noise_radps`, which stays the floor.
+    #[serde(skip)]
     pub yaw_rate_check_window_s: f64,
     /// Yaw acceleration noise of the model: the square root of the white
     /// yaw acceleration's spectral density, rad/s² per √Hz (= rad/s per
     /// √s). Default 0.02.
+    ///
+    /// Not a config key (`#[serde(skip)]`: config files keep the default;
+    /// library callers may set it): a model constant of the filter, bounded by the heading measurements at their rate.
+    #[serde(skip)]
     pub yaw_rate_random_walk_radps_per_sqrt_s: f64,
     /// White noise on the heading besides the yaw-rate model (unmodelled
     /// yaw disturbances), rad per √s. Default 0.
+    ///
+    /// Not a config key (`#[serde(skip)]`: config files keep the default;
+    /// library callers may set it): 0: the slowly wandering heading error is modelled by `heading_bias_sigma_rad` and `heading_bias_time_constant_s`.
+    #[serde(skip)]
     pub heading_random_walk_rad_per_sqrt_s: f64,
     /// Standard deviation of the heading unit's slowly wandering error
     /// (magnetic disturbances near walls and hulls, soft-iron effects), rad:
@@ -184,10 +209,18 @@ pub struct DeadReckoningConfig {
     pub smoothing: bool,
     /// A gap between valid DVL samples longer than this (s) is logged and
     /// listed in `Navigation::dvl_gaps`. Default 5.
+    ///
+    /// Not a config key (`#[serde(skip)]`: config files keep the default;
+    /// library callers may set it): it only decides which gaps are logged and listed.
+    #[serde(skip)]
     pub max_dvl_gap_s: f64,
     /// How far (s) a pose may be extrapolated before the first or after the
     /// last filter step; beyond that, queries return
     /// `FrontendError::OutsideNavigation`. Default 2.
+    ///
+    /// Not a config key (`#[serde(skip)]`: config files keep the default;
+    /// library callers may set it): a bound on queries before the first and after the last sample, not on the estimate.
+    #[serde(skip)]
     pub max_extrapolation_s: f64,
 }
 
@@ -228,12 +261,7 @@ impl DeadReckoningConfig {
             ("max_dvl_gap_s", self.max_dvl_gap_s),
         ];
         for (field, value) in positive {
-            if !(value.is_finite() && value > 0.0) {
-                return Err(FrontendError::config(
-                    field,
-                    format!("must be finite and > 0, got {value}"),
-                ));
-            }
+            crate::config_check::check_positive(field, value)?;
         }
         let non_negative = [
             (

@@ -14,6 +14,7 @@
 
 pub mod kdtree;
 
+use crate::config_check::check_positive;
 use crate::error::FrontendError;
 use echofield_graph::Se2;
 use kdtree::KdTree;
@@ -54,20 +55,10 @@ impl Default for IcpConfig {
 
 impl IcpConfig {
     pub fn validate(&self) -> Result<(), FrontendError> {
-        let positive = |field: &str, v: f64| {
-            if v.is_finite() && v > 0.0 {
-                Ok(())
-            } else {
-                Err(FrontendError::config(
-                    field,
-                    format!("must be positive and finite, got {v}"),
-                ))
-            }
-        };
-        positive("initial_max_distance_m", self.initial_max_distance_m)?;
-        positive("final_max_distance_m", self.final_max_distance_m)?;
-        positive("convergence_m", self.convergence_m)?;
-        positive("convergence_rad", self.convergence_rad)?;
+        check_positive("initial_max_distance_m", self.initial_max_distance_m)?;
+        check_positive("final_max_distance_m", self.final_max_distance_m)?;
+        check_positive("convergence_m", self.convergence_m)?;
+        check_positive("convergence_rad", self.convergence_rad)?;
         if !(self.gate_decay > 0.0 && self.gate_decay <= 1.0) {
             return Err(FrontendError::config(
                 "gate_decay",

@@ -45,6 +45,7 @@ pub use pyramid::Pyramid;
 pub use residency::ImageResidency;
 pub use stored::{GridExtent, StoredImage};
 
+use crate::config_check::check_positive;
 use crate::error::FrontendError;
 use crate::off_axis::OffAxisSuppression;
 use crate::sensors::SonarBeam;
@@ -80,17 +81,33 @@ pub struct ImageConfig {
     /// Half-width of the angular window of [`Interpolation::AngularWindow`],
     /// radians. Widened per wedge to at least the angle between its two
     /// beams, so the fan has no holes.
+    ///
+    /// Not a config key (`#[serde(skip)]`: config files keep the default;
+    /// library callers may set it): half the horizontal beam width, and widened per wedge to the beams' spacing anyway.
+    #[serde(skip)]
     pub angular_half_width_rad: f64,
     /// Consecutive beams further apart than this (radians) are not joined
     /// into a wedge: the gap stays empty (sector ends, lost beams).
+    ///
+    /// Not a config key (`#[serde(skip)]`: config files keep the default;
+    /// library callers may set it): a guard that leaves sector ends and lost beams empty.
+    #[serde(skip)]
     pub max_wedge_rad: f64,
     /// Width (bins) of a centred moving average applied along each beam
     /// before anything else; 1 disables it. Use the segmentation's
     /// `smoothing_bins`: the scan's ranges are the peaks of the smoothed
     /// profiles, and the image then peaks at the same ranges.
+    ///
+    /// Not a config key (`#[serde(skip)]`: config files keep the default;
+    /// library callers may set it): derived from `segmentation.smoothing_bins` (`SlamConfig::derive`), so that the image peaks at the scan's ranges.
+    #[serde(skip)]
     pub range_smoothing_bins: usize,
     /// Bins whose far end is closer than this range (metres) are set to 0:
     /// the transducer's ringing and the vehicle's own echoes.
+    ///
+    /// Not a config key (`#[serde(skip)]`: config files keep the default;
+    /// library callers may set it): derived from `segmentation.blind_zone_m` (`SlamConfig::derive`): the same ringing and own echoes.
+    #[serde(skip)]
     pub blind_zone_m: f64,
     /// Bins farther than this range (metres) are ignored; `None` keeps all.
     pub max_range_m: Option<f64>,
@@ -99,16 +116,32 @@ pub struct ImageConfig {
     pub background_quantile: f64,
     /// Quantile (0-1] of all background-subtracted samples that maps to
     /// intensity 1 (larger values clamp to 1); 1.0 divides by the maximum.
+    ///
+    /// Not a config key (`#[serde(skip)]`: config files keep the default;
+    /// library callers may set it): a robust maximum; the image's scale is divided out by the match's mean intensity gates.
+    #[serde(skip)]
     pub normalisation_quantile: f64,
     /// Exponent `γ` applied to the normalised intensity (`v^γ`); values
     /// above 1 favour the strongest echoes over the weaker reverberation
     /// behind them and over speckle.
+    ///
+    /// Not a config key (`#[serde(skip)]`: config files keep the default;
+    /// library callers may set it): 1 (the identity): the off-axis suppression and the background subtraction do what a larger exponent was meant to.
+    #[serde(skip)]
     pub intensity_exponent: f64,
     /// Standard deviation of the Gaussian smoothing of the raster, metres;
     /// 0 disables it.
+    ///
+    /// Not a config key (`#[serde(skip)]`: config files keep the default;
+    /// library callers may set it): 0: the pyramid and the sub-cell pose fit do without a smoothed raster.
+    #[serde(skip)]
     pub smoothing_sigma_m: f64,
     /// Number of max-pooled pyramid levels above the raster for the coarse
     /// search; level `h` bounds translations of `2^h` cells.
+    ///
+    /// Not a config key (`#[serde(skip)]`: config files keep the default;
+    /// library callers may set it): seven levels bound translations of 128 cells, beyond any window of the gates.
+    #[serde(skip)]
     pub pyramid_levels: usize,
     /// Clears the bins that a neighbouring beam hears much louder at about
     /// the same range ([`crate::off_axis`]), before the background is
@@ -169,8 +202,17 @@ pub struct PoseFitRaster {
     /// `off_axis.margin` of the raster (0-255 units; its suppression is on
     /// whatever the image's `off_axis.enabled`, with the image's other
     /// off-axis settings). Default 10.
+    ///
+    /// Not a config key (`#[serde(skip)]`: config files keep the default;
+    /// library callers may set it): 10, below the image's own margin: the pose fit needs the peaks unbiased, not the weaker echoes.
+    #[serde(skip)]
     pub off_axis_margin: f64,
     /// `range_smoothing_bins` of the raster (1 = none). Default 1.
+    ///
+    /// Not a config key (`#[serde(skip)]`: config files keep the default;
+    /// library callers may set it): 1, no smoothing, so that the pose fit
+    /// reads the peaks where the beams put them.
+    #[serde(skip)]
     pub range_smoothing_bins: usize,
 }
 
@@ -239,21 +281,11 @@ impl ImageConfig {
     }
 
     pub fn validate(&self) -> Result<(), FrontendError> {
-        let positive = |field: &str, v: f64| {
-            if v.is_finite() && v > 0.0 {
-                Ok(())
-            } else {
-                Err(FrontendError::config(
-                    field,
-                    format!("must be positive and finite, got {v}"),
-                ))
-            }
-        };
         if let Some(cell) = self.cell_size_m {
-            positive("cell_size_m", cell)?;
+            check_positive("cell_size_m", cell)?;
         }
-        positive("angular_half_width_rad", self.angular_half_width_rad)?;
-        positive("max_wedge_rad", self.max_wedge_rad)?;
+        check_positive("angular_half_width_rad", self.angular_half_width_rad)?;
+        check_positive("max_wedge_rad", self.max_wedge_rad)?;
         if self.range_smoothing_bins == 0 {
             return Err(FrontendError::config(
                 "range_smoothing_bins",
@@ -267,7 +299,7 @@ impl ImageConfig {
             ));
         }
         if let Some(r) = self.max_range_m {
-            positive("max_range_m", r)?;
+            check_positive("max_range_m", r)?;
         }
         if !(0.0..=1.0).contains(&self.background_quantile) {
             return Err(FrontendError::config(
@@ -281,7 +313,7 @@ impl ImageConfig {
                 format!("must lie in (0, 1], got {}", self.normalisation_quantile),
             ));
         }
-        positive("intensity_exponent", self.intensity_exponent)?;
+        check_positive("intensity_exponent", self.intensity_exponent)?;
         // The smoothing's cost does not depend on σ (`Grid::smooth_gaussian`);
         // beyond the reach of any sonar it only blanks the image.
         if !(self.smoothing_sigma_m.is_finite()

@@ -28,6 +28,7 @@ pub use field::LikelihoodField;
 pub use filter::{LocalizationState, LocalizationStep, MonteCarloLocalizer};
 pub use particles::Particle;
 
+use crate::config_check::check_positive;
 use crate::error::FrontendError;
 use serde::{Deserialize, Serialize};
 
@@ -128,16 +129,6 @@ impl Default for LocalizationConfig {
 impl LocalizationConfig {
     /// Checks every field; the error names the first bad one.
     pub fn validate(&self) -> Result<(), FrontendError> {
-        let positive = |field: &str, v: f64| {
-            if v.is_finite() && v > 0.0 {
-                Ok(())
-            } else {
-                Err(FrontendError::config(
-                    field,
-                    format!("must be finite and > 0, got {v}"),
-                ))
-            }
-        };
         let unit = |field: &str, v: f64| {
             if (0.0..=1.0).contains(&v) {
                 Ok(())
@@ -163,16 +154,16 @@ impl LocalizationConfig {
                 format!("must be at most 10000000, got {}", self.max_particles),
             ));
         }
-        positive("kld_epsilon", self.kld_epsilon)?;
-        positive("kld_z", self.kld_z)?;
-        positive("kld_bin_m", self.kld_bin_m)?;
-        positive("kld_bin_rad", self.kld_bin_rad)?;
-        positive("global_heading_sigma_rad", self.global_heading_sigma_rad)?;
-        positive("score_gain", self.score_gain)?;
+        check_positive("kld_epsilon", self.kld_epsilon)?;
+        check_positive("kld_z", self.kld_z)?;
+        check_positive("kld_bin_m", self.kld_bin_m)?;
+        check_positive("kld_bin_rad", self.kld_bin_rad)?;
+        check_positive("global_heading_sigma_rad", self.global_heading_sigma_rad)?;
+        check_positive("score_gain", self.score_gain)?;
         if self.max_scan_points == 0 {
             return Err(FrontendError::config("max_scan_points", "must be > 0"));
         }
-        positive("field_cell_m", self.field_cell_m)?;
+        check_positive("field_cell_m", self.field_cell_m)?;
         if !(self.field_smoothing_m.is_finite() && self.field_smoothing_m >= 0.0) {
             return Err(FrontendError::config(
                 "field_smoothing_m",
@@ -180,10 +171,10 @@ impl LocalizationConfig {
             ));
         }
         unit("unknown_value", self.unknown_value)?;
-        positive("motion_noise_scale", self.motion_noise_scale)?;
-        positive("motion_noise_floor_m", self.motion_noise_floor_m)?;
-        positive("motion_noise_floor_rad", self.motion_noise_floor_rad)?;
-        positive("converged_spread_m", self.converged_spread_m)?;
+        check_positive("motion_noise_scale", self.motion_noise_scale)?;
+        check_positive("motion_noise_floor_m", self.motion_noise_floor_m)?;
+        check_positive("motion_noise_floor_rad", self.motion_noise_floor_rad)?;
+        check_positive("converged_spread_m", self.converged_spread_m)?;
         unit("min_fit", self.min_fit)?;
         unit("min_coverage", self.min_coverage)?;
         if self.lost_after_rotations == 0 {

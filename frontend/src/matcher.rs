@@ -33,13 +33,17 @@
 
 pub mod config;
 pub mod covariance;
+pub mod gate;
 pub mod outcome;
 pub mod search;
 pub mod symmetric;
+pub mod window;
 pub mod window_key;
 
-pub use config::{MatcherConfig, SearchWindow};
+pub use config::MatcherConfig;
+pub use gate::MatchGate;
 pub use outcome::{MatchOutcome, MatchQuality, MatchResult, MatchStats, NoMatchReason};
+pub use window::SearchWindow;
 
 use crate::error::FrontendError;
 use crate::image::AcousticImage;

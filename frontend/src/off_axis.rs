@@ -36,7 +36,7 @@
 //! **The image's margin and the heading bias.** The image's off-axis echoes
 //! leave the matches a small heading bias; a smaller image margin removes it,
 //! but also removes echoes that the scans keep, so the mean intensity under a
-//! loop's points drops and the loop gate `loops.min_mean_intensity` rejects
+//! loop's points drops and the loop gate `loops.gate.min_mean_intensity` rejects
 //! right loops. The searched image therefore keeps the larger margin, and the
 //! matcher's last step reads a second raster with a smaller one and no range
 //! smoothing ([`crate::image::PoseFitRaster`]): the pose gains the smaller bias
@@ -60,9 +60,17 @@ pub struct OffAxisSuppression {
     pub margin: f64,
     /// Beams whose angles differ by at most this are neighbours, radians:
     /// about the horizontal beam width. Default 3°.
+    ///
+    /// Not a config key (`#[serde(skip)]`: config files keep the default;
+    /// library callers may set it): about the horizontal beam width of the sonars echofield reads (3°).
+    #[serde(skip)]
     pub max_angle_rad: f64,
     /// Echoes of two neighbours are compared when their ranges differ by at
     /// most this, metres. Default 0.3.
+    ///
+    /// Not a config key (`#[serde(skip)]`: config files keep the default;
+    /// library callers may set it): about the range resolution of the smoothed bins.
+    #[serde(skip)]
     pub max_range_difference_m: f64,
 }
 

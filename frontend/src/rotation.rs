@@ -53,6 +53,10 @@ pub struct RotationConfig {
     /// beam periods is a gap and ends the current unit; an angular step
     /// larger than this many median angular steps is a jump (a sector
     /// fly-back) and ends it too. Dimensionless, > 1. Default 3.
+    ///
+    /// Not a config key (`#[serde(skip)]`: config files keep the default;
+    /// library callers may set it): relative to the beam period derived from the stamps, it needs no tuning per sonar.
+    #[serde(skip)]
     pub max_gap_beam_periods: f64,
     /// The beam period in seconds. `None` (the default) derives it as the
     /// median of the positive stamp differences.
@@ -62,6 +66,10 @@ pub struct RotationConfig {
     pub keep_partial: bool,
     /// With `keep_partial`, the smallest angular coverage (radians) a partial
     /// unit must have to be kept. Default π (half a turn).
+    ///
+    /// Not a config key (`#[serde(skip)]`: config files keep the default;
+    /// library callers may set it): half a turn: with `keep_partial`, less than that cannot be matched reliably.
+    #[serde(skip)]
     pub min_partial_coverage_rad: f64,
 }
 

@@ -76,12 +76,20 @@ pub struct SegmentationConfig {
     pub max_peaks: usize,
     /// With `mode = multiple`, the smallest range difference between two
     /// returns of a beam, metres. Default 1.0.
+    ///
+    /// Not a config key (`#[serde(skip)]`: config files keep the default;
+    /// library callers may set it): the separation of returns of `mode = multiple`, about the range resolution of the smoothed bins.
+    #[serde(skip)]
     pub min_peak_separation_m: f64,
     /// Width of the centred moving-average window, in bins; 1 means no
     /// smoothing. Default 3.
     pub smoothing_bins: usize,
     /// `build_scan` fails with `FrontendError::TooFewRanges` when a rotation
     /// gives fewer points than this. Default 10.
+    ///
+    /// Not a config key (`#[serde(skip)]`: config files keep the default;
+    /// library callers may set it): the matcher's own `min_points`; a scan with fewer points cannot be matched.
+    #[serde(skip)]
     pub min_scan_points: usize,
     /// The correction `build_scan` applies to the ranges for the width of
     /// the beam ([`crate::scan::beam_width`]); on by default.

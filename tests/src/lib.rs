@@ -2,7 +2,7 @@
 //! this library holds helpers they share (paths to the committed datasets
 //! and the matching configs of the real sonar logs).
 
-use echofield::matching::MatchingConfig;
+use echofield::slam::SlamConfig;
 use echofield_frontend::off_axis::OffAxisSuppression;
 use std::path::PathBuf;
 
@@ -18,7 +18,7 @@ pub fn ping360_log() -> PathBuf {
     datasets_dir().join("msis-real/ping360/Sensor_Log_01__inside_base.bin")
 }
 
-/// Matching config for [`ping360_log`]. At its high gain the head's
+/// The config of the matching steps for [`ping360_log`]. At its high gain the head's
 /// ringing and near-field reverberation last 0.3-2.9 m, changing from ping
 /// to ping, and only strong returns are walls. The off-axis suppression is
 /// off: its margins are for heads that show decibels (about 3 counts per
@@ -26,8 +26,8 @@ pub fn ping360_log() -> PathBuf {
 /// by tens of counts from beam to beam. With it on, two sweeps keep too few
 /// returns for a scan and the images of two rotations lose the walls their
 /// scans are matched on.
-pub fn ping360_config() -> MatchingConfig {
-    let mut config = MatchingConfig::default();
+pub fn ping360_config() -> SlamConfig {
+    let mut config = SlamConfig::default();
     config.segmentation.blind_zone_m = 4.0;
     config.segmentation.min_intensity = 150.0;
     config.segmentation.min_sigma_above_mean = 0.0;
@@ -42,10 +42,10 @@ pub fn miniking_log() -> PathBuf {
     datasets_dir().join("msis-real/miniking/full_sonar_scan_2015-05-26-11-38-04.bag")
 }
 
-/// Matching config for [`miniking_log`]: high gain, so the beam's own
+/// The config of the matching steps for [`miniking_log`]: high gain, so the beam's own
 /// spread is large; the strongest bin above the beam's mean is the echo.
-pub fn miniking_config() -> MatchingConfig {
-    let mut config = MatchingConfig::default();
+pub fn miniking_config() -> SlamConfig {
+    let mut config = SlamConfig::default();
     config.segmentation.min_sigma_above_mean = 1.0;
     config.segmentation.min_intensity = 0.0;
     config

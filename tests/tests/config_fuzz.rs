@@ -237,7 +237,10 @@ fn every_numeric_key_at_0_minus_1_1e9_nan_inf_is_an_error_or_a_short_run() {
     // Shared machines are noisy: twenty times the baseline, at least 5 s.
     let limit = (baseline * 20).max(Duration::from_secs(5));
     let keys = numeric_keys();
-    assert!(keys.len() > 100, "{} numeric keys", keys.len());
+    // A guard that the enumeration found the keys (78 numeric values since
+    // issue 36 cut the config to about 70 keys, window elements counted
+    // one by one).
+    assert!(keys.len() > 70, "{} numeric keys", keys.len());
     let (mut problems, mut rejected, mut ran, mut failed) = (Vec::new(), 0, 0, 0);
     for key in &keys {
         for (label, value) in values(key.kind) {

@@ -14,13 +14,14 @@
 //!   measured), at least 80% overall (87.5%) and at least twice ICP's
 //!   rate (29%).
 
+use echofield::matching::MissionRotations;
 use echofield::matching::evaluation::{Evaluation, EvaluationConfig, Method, Trial, evaluate};
-use echofield::matching::{MatchingConfig, MissionRotations};
+use echofield::slam::SlamConfig;
 use echofield_datasets::sim::{Scenario, simulate_mission};
 
 fn evaluation(scenario: &str, pairs: usize, trials: usize, seed: u64) -> Evaluation {
     let mission = simulate_mission(&Scenario::named(scenario).unwrap(), 1).unwrap();
-    let config = MatchingConfig::default();
+    let config = SlamConfig::default();
     let rotations = MissionRotations::new(mission, &config).unwrap();
     let eval = EvaluationConfig {
         trials_per_pair: trials,
@@ -109,7 +110,7 @@ fn rotations_before_the_navigation_starts_are_not_drawn() {
     let start_s = mission.beams[0].stamp_s + 30.0;
     mission.dvl.retain(|d| d.stamp_s >= start_s);
     mission.attitude.retain(|a| a.stamp_s >= start_s);
-    let config = MatchingConfig::default();
+    let config = SlamConfig::default();
     let rotations = MissionRotations::new(mission, &config).unwrap();
     let uncovered: Vec<usize> = (0..rotations.rotations.len())
         .filter(|&k| rotations.scan(k, &config).is_err())
@@ -159,17 +160,14 @@ fn the_slam_trajectory_compensates_the_motion_better_than_dead_reckoning() {
     // tank; 0.49 -> 0.19 m on the St Pere replay with `echofield
     // bench-dead-reckoning --slam`), and the matcher still succeeds.
     use echofield::matching::navigation_eval::{distortion, ground_truth_navigation};
-    use echofield::slam::SlamConfig;
     let mission = simulate_mission(&Scenario::named("tank").unwrap(), 1).unwrap();
-    let config = MatchingConfig::default();
+    let config = SlamConfig::default();
     let mut rotations = MissionRotations::new(mission, &config).unwrap();
     let truth = ground_truth_navigation(&rotations.mission).unwrap();
     let of =
         |r: &MissionRotations| distortion(&r.mission, &r.rotations, &r.navigation, &truth).unwrap();
     let before = of(&rotations);
-    let report = rotations
-        .use_slam_navigation(&config, &SlamConfig::default())
-        .unwrap();
+    let report = rotations.use_slam_navigation(&config).unwrap();
     assert!(report.ate_rmse_m.unwrap() < 0.3);
     let after = of(&rotations);
     assert_eq!(before.rotations, after.rotations);

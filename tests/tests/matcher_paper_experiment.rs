@@ -7,7 +7,8 @@
 //! The search starts from a prior 0.36 m and 2° away, in a window of
 //! ±0.5 m and ±5°, so the maximum is found, not assumed.
 
-use echofield::matching::{MatchingConfig, MissionRotations};
+use echofield::matching::MissionRotations;
+use echofield::slam::SlamConfig;
 use echofield_datasets::sim::point_sets::to_point_sets;
 use echofield_datasets::sim::{Scenario, SimConfig, simulate_mission};
 use echofield_frontend::matcher::{MatchOutcome, SearchWindow, match_scan};
@@ -33,7 +34,7 @@ const PING360_TOLERANCE_DEG: f64 = 0.6;
 /// point lands, so the argmax is a region; its extent is about one raster
 /// cell (0.2 m for 50 m beams) when the bands are at their narrowest (two
 /// cells, `echofield_frontend::intensity`): the tolerance is one cell.
-fn tolerance_m(mission: &MissionRotations, config: &MatchingConfig) -> f64 {
+fn tolerance_m(mission: &MissionRotations, config: &SlamConfig) -> f64 {
     if mission.binary {
         config.image.cell_size_for(&mission.mission.beams)
     } else {
@@ -47,7 +48,7 @@ fn tolerance_m(mission: &MissionRotations, config: &MatchingConfig) -> f64 {
 fn self_match_every_rotation(
     name: &str,
     mission: &MissionRotations,
-    config: &MatchingConfig,
+    config: &SlamConfig,
     tolerance_deg: f64,
     keep: impl Fn(usize) -> bool,
 ) -> (f64, f64, usize) {
@@ -85,7 +86,7 @@ fn self_match_every_rotation(
 #[test]
 fn simulated_tank_mission() {
     let mission = simulate_mission(&Scenario::named("tank").unwrap(), 1).unwrap();
-    let config = MatchingConfig::default();
+    let config = SlamConfig::default();
     let rotations = MissionRotations::new(mission, &config).unwrap();
     assert!(rotations.rotations.len() >= 8);
     let (_, _, without) =
@@ -98,7 +99,7 @@ fn st_pere_replay() {
     let scenario =
         Scenario::stpere(&datasets_dir().join("stpere-marina"), SimConfig::default()).unwrap();
     let mission = simulate_mission(&scenario, 3).unwrap();
-    let config = MatchingConfig::default();
+    let config = SlamConfig::default();
     let rotations = MissionRotations::new(mission, &config).unwrap();
     assert!(
         rotations.rotations.len() > 200,
@@ -162,7 +163,7 @@ fn real_miniking_log() {
 fn simulated_tank_mission_as_point_sets() {
     let mut mission = simulate_mission(&Scenario::named("tank").unwrap(), 1).unwrap();
     to_point_sets(&mut mission.beams);
-    let config = MatchingConfig::default();
+    let config = SlamConfig::default();
     let rotations = MissionRotations::new(mission, &config).unwrap();
     assert!(rotations.binary);
     let (_, _, without) = self_match_every_rotation(
@@ -192,7 +193,7 @@ fn simulated_tank_mission_as_ranges_only() {
             beam.intensities[best] = 1;
         }
     }
-    let config = MatchingConfig::default();
+    let config = SlamConfig::default();
     let rotations = MissionRotations::new(mission, &config).unwrap();
     assert!(rotations.binary);
     let (_, _, without) =
@@ -209,7 +210,7 @@ fn real_st_pere_point_sets() {
         .apply(&mission)
         .unwrap()
         .into_owned();
-    let config = MatchingConfig::default();
+    let config = SlamConfig::default();
     let rotations = MissionRotations::new(mission, &config).unwrap();
     assert!(rotations.binary);
     let covered = rotations

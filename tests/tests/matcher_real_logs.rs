@@ -4,7 +4,8 @@
 //! (up to 3 m and 15°) applied to a real scan and recovered, to 0.1 m and
 //! 1°.
 
-use echofield::matching::{MatchingConfig, MissionRotations};
+use echofield::matching::MissionRotations;
+use echofield::slam::SlamConfig;
 use echofield_frontend::image::AcousticImage;
 use echofield_frontend::matcher::{MatchOutcome, SearchWindow, match_scan};
 use echofield_frontend::scan::Scan;
@@ -16,7 +17,7 @@ use rand_chacha::ChaCha8Rng;
 const TOLERANCE_M: f64 = 0.1;
 const TOLERANCE_DEG: f64 = 1.0;
 
-fn miniking() -> (MissionRotations, MatchingConfig) {
+fn miniking() -> (MissionRotations, SlamConfig) {
     let config = miniking_config();
     (
         MissionRotations::load(&miniking_log(), &config).unwrap(),
@@ -24,7 +25,7 @@ fn miniking() -> (MissionRotations, MatchingConfig) {
     )
 }
 
-fn ping360() -> (MissionRotations, MatchingConfig) {
+fn ping360() -> (MissionRotations, SlamConfig) {
     let config = ping360_config();
     (
         MissionRotations::load(&ping360_log(), &config).unwrap(),
@@ -39,7 +40,7 @@ fn estimate(
     image: &AcousticImage,
     prior: &Se2,
     window: &SearchWindow,
-    config: &MatchingConfig,
+    config: &SlamConfig,
 ) -> Se2 {
     match match_scan(&scan.points, image, prior, window, &config.matcher).unwrap() {
         MatchOutcome::Match(m) => m.image_from_scan,

@@ -4,9 +4,10 @@
 //! mission without loop closures still gives the dead-reckoning-plus-
 //! sequential trajectory, and a run is deterministic.
 
-use echofield::slam::{NoProgress, RejectReason, SlamConfig, SlamError, run_mission};
+use echofield::slam::{NoProgress, SlamConfig, SlamError, run_mission};
 use echofield_datasets::sim::{Scenario, simulate_mission};
 use echofield_frontend::Mission;
+use echofield_frontend::loops::RejectReason;
 use echofield_graph::EdgeKind;
 use std::sync::OnceLock;
 

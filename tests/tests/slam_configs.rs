@@ -75,8 +75,8 @@ fn unknown_keys_are_errors_naming_their_path() {
         ("[image]\ncell_size = 0.1\n", "image.cell_size"),
         ("[matcher]\nmax_points = 100\nfoo = 1\n", "matcher.foo"),
         (
-            "[loops.reverse_window]\nx_m = 1.0\ny_m = 1.0\ntheta_rad = 0.1\nz_m = 1.0\n",
-            "loops.reverse_window",
+            "[loops.gate]\nmin_windw = [1.0, 1.0, 0.1]\n",
+            "loops.gate.min_windw",
         ),
         ("colour = \"red\"\n", "colour"),
     ] {
@@ -95,7 +95,10 @@ fn bad_values_are_errors_naming_the_field() {
             "[loops]\nmin_separation_nodes = 1\n",
             "loops.min_separation_nodes",
         ),
-        ("[sequential]\nn_sigma = -1.0\n", "sequential.n_sigma"),
+        (
+            "[sequential.gate]\nn_sigma = -1.0\n",
+            "sequential.gate.n_sigma",
+        ),
         ("[image]\ncell_size_m = 0.0\n", "image.cell_size_m"),
         ("[backend.solver]\nthreads = 0\n", "backend.solver.threads"),
         (
@@ -128,16 +131,16 @@ fn partly_set_sections_keep_the_pipelines_other_defaults() {
     };
     let cases: Vec<(&str, SlamConfig)> = vec![
         (
-            "[matcher]\ncovariance_scale = 0.5\n",
-            changed(&|c| c.matcher.covariance_scale = 0.5),
+            "[matcher]\nmax_points = 400\n",
+            changed(&|c| c.matcher.max_points = 400),
         ),
         (
-            "[image.off_axis]\nmax_range_difference_m = 0.5\n",
-            changed(&|c| c.image.off_axis.max_range_difference_m = 0.5),
+            "[image.off_axis]\nenabled = false\n",
+            changed(&|c| c.image.off_axis.enabled = false),
         ),
         (
-            "[segmentation.off_axis]\nmax_range_difference_m = 0.5\n",
-            changed(&|c| c.segmentation.off_axis.max_range_difference_m = 0.5),
+            "[segmentation.off_axis]\nenabled = false\n",
+            changed(&|c| c.segmentation.off_axis.enabled = false),
         ),
         (
             "[backend.solver]\nmax_iterations = 7\n",

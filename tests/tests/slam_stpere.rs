@@ -4,6 +4,7 @@
 
 use echofield::slam::{NoProgress, SlamConfig, run_mission};
 use echofield_datasets::sim::{Mission, Scenario, simulate_mission};
+use echofield_frontend::loops::config::DENSIFY_MIN_PREDICTED_OVERLAP;
 use echofield_tests::ground_truth_odometry_scale;
 use std::sync::OnceLock;
 
@@ -153,7 +154,7 @@ fn st_pere_replay_is_within_a_metre_of_dgps() {
         }
         if l.densified {
             assert_eq!(l.examined_at, last);
-            assert!(l.predicted_overlap >= config.loops.densify_min_predicted_overlap);
+            assert!(l.predicted_overlap >= DENSIFY_MIN_PREDICTED_OVERLAP);
             assert!(l.to - l.from >= config.loops.min_separation_nodes as u64);
         }
     }

@@ -25,7 +25,7 @@ pub struct UnknownSection {
     pub known: Vec<String>,
 }
 
-/// One table of the text: its name (`loops.min_window`) and its lines,
+/// One table of the text: its name (`loops.gate`) and its lines,
 /// from the comment block just above the header to the line before the
 /// next table's comment block.
 struct Table<'a> {
@@ -74,7 +74,7 @@ fn split(text: &str) -> (Vec<&str>, Vec<Table<'_>>) {
     (preamble, tables)
 }
 
-/// The name of a table header line (`[loops.min_window]`), if it is one.
+/// The name of a table header line (`[loops.gate]`), if it is one.
 fn header(line: &str) -> Option<&str> {
     let name = line.strip_prefix('[')?.strip_suffix(']')?;
     (!name.starts_with('[') && !name.is_empty()).then_some(name.trim())
@@ -94,7 +94,7 @@ pub fn section_names(text: &str) -> Vec<String> {
 }
 
 /// The table `name` of `text` and its sub-tables (`loops` gives `[loops]`
-/// and `[loops.min_window]` ...; `loops.min_window` only that one), each
+/// and `[loops.gate]` ...; `loops.gate` only that one), each
 /// with its documentation. Errors: no table has that name or lies under it.
 pub fn section(text: &str, name: &str) -> Result<String, UnknownSection> {
     let name = name.trim().trim_start_matches('[').trim_end_matches(']');
@@ -117,7 +117,7 @@ pub fn section(text: &str, name: &str) -> Result<String, UnknownSection> {
     Ok(out.trim_end().to_string() + "\n")
 }
 
-/// The full path of every key of the TOML `text` (`loops.min_window.x_m`),
+/// The full path of every key of the TOML `text` (`loops.gate.min_window`),
 /// each table's keys in alphabetical order; an array is one key. Errors:
 /// `text` is not TOML.
 pub fn key_paths(text: &str) -> Result<Vec<String>, toml::de::Error> {
@@ -206,7 +206,7 @@ mod tests {
 
         let image = section(DOCUMENTED_DEFAULTS, "[image]").unwrap();
         assert!(image.contains("[image.pose_fit]"), "{image}");
-        assert!(image.contains("pyramid_levels = "), "{image}");
+        assert!(image.contains("background_quantile = "), "{image}");
         assert!(!image.contains("[matcher"), "{image}");
     }
 
@@ -223,8 +223,35 @@ mod tests {
         let text = "[a]\nx = 1\n[a.w]\nx_m = 0.5\n[b]\nl = [1, 2]\n";
         assert_eq!(key_paths(text).unwrap(), ["a.w.x_m", "a.x", "b.l"]);
         let all = key_paths(DOCUMENTED_DEFAULTS).unwrap();
-        assert!(all.iter().any(|k| k == "loops.min_window"), "{all:?}");
+        assert!(all.iter().any(|k| k == "loops.gate.min_window"), "{all:?}");
         assert!(key_paths("[a").is_err());
+    }
+
+    #[test]
+    fn no_removed_key_is_a_key_of_the_defaults_and_each_names_its_replacement() {
+        let defaults = key_paths(DOCUMENTED_DEFAULTS).unwrap();
+        for (path, replacement) in crate::config_file::REMOVED_KEYS {
+            assert!(
+                !defaults
+                    .iter()
+                    .any(|k| k == path || k.starts_with(&format!("{path}."))),
+                "{path}"
+            );
+            let text = format!(
+                "[{}]\n{} = 1\n",
+                path.rsplit_once('.').unwrap().0,
+                path.rsplit_once('.').unwrap().1
+            );
+            let message = format!("{:#}", SlamConfig::from_toml_str(&text).unwrap_err());
+            assert!(message.contains(path), "{message}");
+            assert!(message.contains(replacement), "{message}");
+        }
+    }
+
+    #[test]
+    fn at_most_seventy_keys_have_a_default() {
+        let keys = key_paths(DOCUMENTED_DEFAULTS).unwrap();
+        assert!(keys.len() <= 70, "{} keys: {keys:?}", keys.len());
     }
 
     #[test]

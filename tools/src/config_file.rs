@@ -22,6 +22,9 @@
 //! every config struct denies unknown fields. Errors name the key by its
 //! path (`loops.min_separaton_nodes`).
 
+mod removed;
+
+pub use removed::{REMOVED_KEYS, check_removed_keys};
 use serde::Serialize;
 use serde::de::DeserializeOwned;
 
@@ -32,7 +35,7 @@ const ENUM_TAG: &str = "kind";
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[error("{path}: {message}")]
 pub struct ConfigFileError {
-    /// The TOML path of the offending key (`loops.n_sigma`), or
+    /// The TOML path of the offending key (`loops.gate.n_sigma`), or
     /// `(document)` for a syntax error.
     pub path: String,
     pub message: String,
@@ -68,7 +71,7 @@ pub fn from_toml_over<T: Serialize + DeserializeOwned>(
         let path = e.path().to_string();
         let message = e.into_inner().to_string();
         // toml ends some messages with a line naming the key again
-        // (`in `loops.min_window``); the path is already given, once.
+        // (`in `loops.gate.min_window``); the path is already given, once.
         let message = message.trim_end();
         let message = match message.rsplit_once('\n') {
             Some((head, tail)) if tail.trim_start().starts_with("in `") => head.trim_end(),

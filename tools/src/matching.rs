@@ -7,100 +7,32 @@
 //! `S_k` and the acoustic image `I_k` are built in the frame of its central
 //! pose ([`MissionRotations`]). The prior of a match of `S_K` against `I_J`
 //! is the dead-reckoning motion between the two reference times, its search
-//! window `n_sigma` standard deviations of that motion ([`WindowConfig`]).
+//! window that of a loop candidate (`loops.gate`: `n_sigma` standard
+//! deviations of that motion, clamped to the gate's windows).
+//!
+//! Every step reads the pipeline's own [`SlamConfig`] (the file `echofield
+//! run --config` reads): its `[dead_reckoning]`, `[rotation]`,
+//! `[segmentation]`, `[image]`, `[matcher]` and `[loops.gate]` sections.
 
 pub mod evaluation;
 pub mod navigation_eval;
 pub mod plots;
 
+use crate::slam::SlamConfig;
 use anyhow::{Context, Result, bail};
 use echofield_datasets::{mcap, miniking, ping360, stpere};
 use echofield_frontend::FrontendError;
-use echofield_frontend::dead_reckoning::{self, DeadReckoningConfig, Navigation};
+use echofield_frontend::dead_reckoning::{self, Navigation};
 use echofield_frontend::image::{AcousticImage, ImageConfig};
 use echofield_frontend::intensity::{self, IntensityKind};
-use echofield_frontend::matcher::{MatcherConfig, SearchWindow};
 use echofield_frontend::motion;
-use echofield_frontend::rotation::{Rotation, RotationConfig, assemble_rotations};
+use echofield_frontend::rotation::{Rotation, assemble_rotations};
 use echofield_frontend::scan::{Scan, build_scan};
 use echofield_frontend::segmentation::SegmentationConfig;
 use echofield_frontend::sensors::{GroundTruthPose, Mission};
 use echofield_graph::{Se2, wrap_angle};
 use nalgebra::Matrix3;
-use serde::{Deserialize, Serialize};
 use std::path::Path;
-
-/// How the search window follows from the prior's covariance.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct WindowConfig {
-    /// Half-width of the window in standard deviations of the prior.
-    pub n_sigma: f64,
-    /// Smallest half-widths (x m, y m, θ rad).
-    pub min: SearchWindow,
-    /// Largest half-widths; also the window of a prior given by hand.
-    pub max: SearchWindow,
-}
-
-impl Default for WindowConfig {
-    fn default() -> Self {
-        Self {
-            n_sigma: 3.0,
-            min: SearchWindow::new(0.5, 0.5, 3.0_f64.to_radians()),
-            max: SearchWindow::new(5.5, 5.5, 22.0_f64.to_radians()),
-        }
-    }
-}
-
-impl WindowConfig {
-    pub fn window(&self, prior_covariance: &Matrix3<f64>) -> SearchWindow {
-        SearchWindow::from_covariance(prior_covariance, self.n_sigma, &self.min, &self.max)
-    }
-}
-
-/// Every stage's configuration for matching rotations (TOML sections).
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct MatchingConfig {
-    pub dead_reckoning: DeadReckoningConfig,
-    pub rotation: RotationConfig,
-    pub segmentation: SegmentationConfig,
-    pub image: ImageConfig,
-    pub matcher: MatcherConfig,
-    pub window: WindowConfig,
-}
-
-impl MatchingConfig {
-    /// Reads a TOML file laid over the defaults
-    /// ([`crate::config_file::from_toml_over`]: a section set in part keeps
-    /// its other defaults); unknown keys are errors naming the key.
-    pub fn from_toml_file(path: &Path) -> Result<Self> {
-        let text = crate::config_file::read_config_text(path)?;
-        let config = crate::config_file::from_toml_over(&text, &Self::default())
-            .with_context(|| format!("in config {}", path.display()))?;
-        config
-            .validate()
-            .with_context(|| format!("in config {}", path.display()))?;
-        Ok(config)
-    }
-
-    pub fn validate(&self) -> Result<()> {
-        self.dead_reckoning.validate().context("[dead_reckoning]")?;
-        self.rotation.validate().context("[rotation]")?;
-        self.segmentation.validate().context("[segmentation]")?;
-        self.image.validate().context("[image]")?;
-        self.matcher.validate().context("[matcher]")?;
-        if !(self.window.n_sigma.is_finite() && self.window.n_sigma > 0.0) {
-            bail!(
-                "[window] n_sigma must be positive, got {}",
-                self.window.n_sigma
-            );
-        }
-        self.window.min.validate().context("[window] min")?;
-        self.window.max.validate().context("[window] max")?;
-        Ok(())
-    }
-}
 
 /// Reads a mission: a St Pere log folder, a Ping360 `.bin` log, a MiniKing
 /// `.bag`, or else an echofield MCAP file.
@@ -146,7 +78,7 @@ pub struct MissionRotations {
 }
 
 impl MissionRotations {
-    pub fn new(mut mission: Mission, config: &MatchingConfig) -> Result<Self> {
+    pub fn new(mut mission: Mission, config: &SlamConfig) -> Result<Self> {
         let (mut segmentation, mut image) = (config.segmentation.clone(), config.image.clone());
         let prepared = intensity::prepare(&mut mission.beams, &mut segmentation, &mut image);
         let binary = matches!(prepared.kind, IntensityKind::Binary { .. });
@@ -198,14 +130,12 @@ impl MissionRotations {
 
     /// Replaces the navigation by the dead reckoning bent
     /// ([`crate::slam::refine`]) through the optimised node poses of a run
-    /// of [`crate::slam::run_mission`] with `slam`, whose dead reckoning,
-    /// rotation, segmentation and image sections are replaced by `config`'s
-    /// (the run's dead reckoning is then the one bent). No ground truth is
-    /// used. Returns the run's report.
+    /// of [`crate::slam::run_mission`] with `config` (the run's dead
+    /// reckoning is then the one bent). No ground truth is used. Returns
+    /// the run's report.
     pub fn use_slam_navigation(
         &mut self,
-        config: &MatchingConfig,
-        slam: &crate::slam::SlamConfig,
+        config: &SlamConfig,
     ) -> Result<crate::slam::result::Report> {
         if self.stationary {
             bail!(
@@ -213,14 +143,7 @@ impl MissionRotations {
                 self.mission.name
             );
         }
-        let slam = crate::slam::SlamConfig {
-            dead_reckoning: config.dead_reckoning.clone(),
-            rotation: config.rotation.clone(),
-            segmentation: config.segmentation.clone(),
-            image: config.image.clone(),
-            ..slam.clone()
-        };
-        let out = crate::slam::run_mission(&self.mission, &slam, &crate::slam::NoProgress)
+        let out = crate::slam::run_mission(&self.mission, config, &crate::slam::NoProgress)
             .context("the SLAM run whose trajectory compensates the motion")?;
         let stamps: Vec<f64> = out.nodes.iter().map(|n| n.stamp_s).collect();
         let dead_reckoning: Vec<Se2> = out.nodes.iter().map(|n| n.dead_reckoning).collect();
@@ -239,7 +162,7 @@ impl MissionRotations {
     }
 
     /// Loads, navigates and cuts a mission file.
-    pub fn load(path: &Path, config: &MatchingConfig) -> Result<Self> {
+    pub fn load(path: &Path, config: &SlamConfig) -> Result<Self> {
         Self::new(load_mission(path)?, config)
     }
 
@@ -298,11 +221,7 @@ impl MissionRotations {
 
     /// `S_k` and `I_k` of rotation `k`. The image is built with the scan's
     /// [`Scan::image_frames`], so that the two agree.
-    pub fn scan_and_image(
-        &self,
-        k: usize,
-        config: &MatchingConfig,
-    ) -> Result<(Scan, AcousticImage)> {
+    pub fn scan_and_image(&self, k: usize, config: &SlamConfig) -> Result<(Scan, AcousticImage)> {
         let frames = self.frames(k)?;
         let scan = self.scan_with(k, &frames, config)?;
         let image = self.image_with(k, &scan.image_frames(&frames), config)?;
@@ -312,7 +231,7 @@ impl MissionRotations {
     /// `I_k` alone, built as [`MissionRotations::scan_and_image`] builds it
     /// (from the beam frames that its scan corrected; the uncorrected ones
     /// when the rotation has too few ranges for a scan).
-    pub fn image(&self, k: usize, config: &MatchingConfig) -> Result<AcousticImage> {
+    pub fn image(&self, k: usize, config: &SlamConfig) -> Result<AcousticImage> {
         let frames = self.frames(k)?;
         let frames = match self.scan_with(k, &frames, config) {
             Ok(scan) => scan.image_frames(&frames),
@@ -322,13 +241,13 @@ impl MissionRotations {
     }
 
     /// `S_k` alone.
-    pub fn scan(&self, k: usize, config: &MatchingConfig) -> Result<Scan> {
+    pub fn scan(&self, k: usize, config: &SlamConfig) -> Result<Scan> {
         self.scan_with(k, &self.frames(k)?, config)
     }
 
     /// `config`'s segmentation and image settings, with those that binary
     /// data changes changed ([`intensity::binary_settings`]).
-    fn settings(&self, config: &MatchingConfig) -> (SegmentationConfig, ImageConfig) {
+    fn settings(&self, config: &SlamConfig) -> (SegmentationConfig, ImageConfig) {
         let (mut segmentation, mut image) = (config.segmentation.clone(), config.image.clone());
         if self.binary {
             intensity::binary_settings(&mut segmentation, &mut image);
@@ -336,7 +255,7 @@ impl MissionRotations {
         (segmentation, image)
     }
 
-    fn scan_with(&self, k: usize, frames: &[Se2], config: &MatchingConfig) -> Result<Scan> {
+    fn scan_with(&self, k: usize, frames: &[Se2], config: &SlamConfig) -> Result<Scan> {
         let rotation = self.rotation(k)?;
         let beams = &self.mission.beams[rotation.beams.clone()];
         let (segmentation, _) = self.settings(config);
@@ -344,12 +263,7 @@ impl MissionRotations {
             .with_context(|| format!("scan of rotation {k}"))
     }
 
-    fn image_with(
-        &self,
-        k: usize,
-        frames: &[Se2],
-        config: &MatchingConfig,
-    ) -> Result<AcousticImage> {
+    fn image_with(&self, k: usize, frames: &[Se2], config: &SlamConfig) -> Result<AcousticImage> {
         let rotation = self.rotation(k)?;
         let beams = &self.mission.beams[rotation.beams.clone()];
         let (_, image) = self.settings(config);
@@ -432,21 +346,21 @@ mod tests {
     }
 
     #[test]
-    fn config_parses_partial_toml_and_rejects_unknown_keys() {
-        let parse =
-            |text: &str| crate::config_file::from_toml_over(text, &MatchingConfig::default());
-        let cfg = parse("[image]\ncell_size_m = 0.1\n[window]\nn_sigma = 2.0\n").unwrap();
+    fn the_matching_steps_read_the_pipelines_config() {
+        // One config file for `run` and `match`: a section set in part
+        // keeps its other defaults (the image's off-axis margin is not its
+        // type's), and the window of a match is the loop gate's.
+        let cfg = SlamConfig::from_toml_str(
+            "[image]\ncell_size_m = 0.1\n[loops.gate]\nn_sigma = 2.0\n[image.off_axis]\nenabled = false\n",
+        )
+        .unwrap();
         assert_eq!(cfg.image.cell_size_m, Some(0.1));
-        assert_eq!(cfg.window.n_sigma, 2.0);
-        assert_eq!(cfg.matcher, MatcherConfig::default());
-        // A section set in part keeps its other defaults: the image's
-        // off-axis margin is not its type's.
-        let cfg = parse("[image.off_axis]\nenabled = false\n").unwrap();
+        assert_eq!(cfg.loops.gate.n_sigma, 2.0);
+        assert_eq!(cfg.matcher, SlamConfig::default().matcher);
         let expected = ImageConfig::default().off_axis;
         assert_eq!(cfg.image.off_axis.margin, expected.margin);
         assert_ne!(expected.margin, OffAxisSuppression::default().margin);
-        let err = parse("[image]\ncell_size = 0.1\n").unwrap_err();
-        assert_eq!(err.path, "image.cell_size");
-        MatchingConfig::default().validate().unwrap();
+        let err = SlamConfig::from_toml_str("[image]\ncell_size = 0.1\n").unwrap_err();
+        assert!(err.to_string().contains("image.cell_size"), "{err}");
     }
 }

@@ -71,20 +71,14 @@ pub mod sequential;
 
 pub(crate) mod pipeline;
 
-// The frontend modules that lived here before the loop-closure machinery
-// moved to `echofield_frontend` (issue 36), under their old paths for the
-// work in flight; new code names them in the frontend.
-pub use echofield_frontend::matcher::symmetric;
-pub use echofield_frontend::{nodes, uncertainty};
-
-pub use config::{BackendConfig, EvaluationConfig, SequentialConfig, SlamConfig, Window};
+pub use config::{BackendConfig, EvaluationConfig, SequentialConfig, SlamConfig};
 pub use engine::{NodeEvent, SlamEngine};
 pub use error::SlamError;
-pub use loops::LoopConfig;
+pub use node_record::NodeRecord;
 pub use pipeline::{replay, run_mission, run_mission_online};
 pub use result::{
-    IntensityReport, LoopRecord, NodeRecord, OnlineReport, RecallBin, RecallBudget, RejectReason,
-    Report, RunInfo, SequentialRecord, SlamOutput, StageTimings,
+    IntensityReport, OnlineReport, RecallBin, RecallBudget, Report, RunInfo, SlamOutput,
+    StageTimings,
 };
 
 use anyhow::{Context, Result, bail};

@@ -55,11 +55,12 @@ fn one_section_and_its_keys() {
         SlamConfig::default()
     );
 
-    let keys = echofield(&["config", "--section", "image.pose_fit", "--list-keys"]);
+    let keys = echofield(&["config", "--section", "loops.gate", "--list-keys"]);
     assert!(keys.status.success(), "{keys:?}");
     assert_eq!(
         String::from_utf8(keys.stdout).unwrap(),
-        "image.pose_fit.enabled\nimage.pose_fit.off_axis_margin\nimage.pose_fit.range_smoothing_bins\n"
+        "loops.gate.max_window\nloops.gate.min_mean_intensity\nloops.gate.min_sigma\n\
+         loops.gate.min_window\nloops.gate.n_sigma\nloops.gate.reverse_max_translation_m\n"
     );
 }
 

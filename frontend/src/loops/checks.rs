@@ -22,16 +22,17 @@
 //!    agree with it.
 //!
 //! A candidate of the mission pass that the estimate predicts to overlap
-//! almost entirely (`escalate_min_predicted_overlap`) but whose match fails
+//! almost entirely (`ESCALATE_MIN_PREDICTED_OVERLAP`) but whose match fails
 //! check 2 or finds nothing is searched once more over a window
 //! `escalate_window_factor` times larger before check 2 is final; the
 //! wider match is kept only when it passes checks 2-4.
 
 use super::LoopConfig;
+use super::config::{ESCALATE_MIN_PREDICTED_OVERLAP, WINDOW_EDGE_FRACTION};
 use super::records::{LoopRecord, RejectReason};
 use crate::error::StageError;
 use crate::matcher::SearchWindow as Window;
-use crate::matcher::symmetric::{Fusion, Tolerance, reverse_match};
+use crate::matcher::symmetric::{Fusion, reverse_match};
 use crate::matcher::{
     MatchOutcome, MatchResult, MatcherConfig, Search, SearchWindow, match_scan, match_scan_local,
 };
@@ -59,7 +60,7 @@ pub struct Candidate {
     /// `n_sigma` standard deviations per axis, before clamping.
     pub raw_window: SearchWindow,
     /// Searched over `max_window` although its raw window is larger (see
-    /// `LoopConfig::wide_searches_per_node`).
+    /// `loops::config::WIDE_SEARCHES_PER_NODE`).
     pub wide: bool,
     /// A densification pair (after the mission, prior from the optimised
     /// estimate): both matches climb to the nearest maximum
@@ -79,7 +80,7 @@ impl Candidate {
     /// (`LoopConfig::validate` keeps `min <= max`; were it not, `max`
     /// wins: `max(lo).min(hi)` never panics, unlike `f64::clamp`).
     pub fn window(&self, config: &LoopConfig) -> SearchWindow {
-        let (lo, hi) = (&config.min_window, &config.max_window);
+        let (lo, hi) = (&config.gate.min_window, &config.gate.max_window);
         SearchWindow::new(
             self.raw_window.x_m.max(lo.x_m).min(hi.x_m),
             self.raw_window.y_m.max(lo.y_m).min(hi.y_m),
@@ -157,34 +158,7 @@ pub fn examine(
         )
         .map_err(|e| StageError::new(stage(), e))
     };
-    let mut outcome = search(&record.window)?;
-    // A maximum at the window's edge says the prior was further off than
-    // its covariance allowed: search once more over twice the window.
-    if let MatchOutcome::Match(m) = &outcome
-        && individual_checks(m, candidate, &record.window, config) == Some(RejectReason::WindowEdge)
-    {
-        let wider = scaled_window(&record.window, 2.0, &config.max_window);
-        if wider != record.window {
-            record.window = wider;
-            outcome = search(&wider)?;
-        }
-    }
-    if escalates(&outcome, candidate, &record.window, config) {
-        let wider = scaled_window(
-            &record.window,
-            config.escalate_window_factor,
-            &config.max_window,
-        );
-        if wider != record.window {
-            let again = search(&wider)?;
-            if let MatchOutcome::Match(m) = &again
-                && individual_checks(m, candidate, &wider, config).is_none()
-            {
-                record.window = wider;
-                outcome = again;
-            }
-        }
-    }
+    let outcome = search_with_retries(candidate, &mut record.window, &search, config)?;
     let m = match outcome {
         MatchOutcome::Match(m) => m,
         MatchOutcome::NoMatch { reason } => {
@@ -204,11 +178,7 @@ pub fn examine(
     }
     // The symmetric check: S_j on I_k, climbing from the inverse of the
     // result (see `symmetric` for why a climb and not a search).
-    let tolerance = Tolerance {
-        window: config.reverse_window,
-        max_translation_m: config.reverse_max_translation_m,
-        max_rotation_rad: config.reverse_max_rotation_rad,
-    };
+    let tolerance = config.gate.reverse_tolerance();
     let new_image = new.image.image().map_err(|e| StageError::new(stage(), e))?;
     let (reverse, measurement) = reverse_match(
         &m,
@@ -237,6 +207,48 @@ pub fn examine(
     Ok(record)
 }
 
+/// The match of `candidate` by `search` over `window`, searched again
+/// where the first result says the window was wrong: over twice the
+/// window when its maximum lies at the window's edge (the prior was further
+/// off than its covariance allowed), and over `escalate_window_factor`
+/// times it when [`escalates`] (kept only when it passes the individual
+/// checks). `window` becomes the window of the result kept; both wider
+/// windows stay within `gate.max_window`.
+fn search_with_retries(
+    candidate: &Candidate,
+    window: &mut SearchWindow,
+    search: &dyn Fn(&SearchWindow) -> Result<MatchOutcome, StageError>,
+    config: &LoopConfig,
+) -> Result<MatchOutcome, StageError> {
+    let mut outcome = search(window)?;
+    if let MatchOutcome::Match(m) = &outcome
+        && individual_checks(m, candidate, window, config) == Some(RejectReason::WindowEdge)
+    {
+        let wider = scaled_window(window, 2.0, &config.gate.max_window);
+        if wider != *window {
+            *window = wider;
+            outcome = search(&wider)?;
+        }
+    }
+    if escalates(&outcome, candidate, window, config) {
+        let wider = scaled_window(
+            window,
+            config.escalate_window_factor,
+            &config.gate.max_window,
+        );
+        if wider != *window {
+            let again = search(&wider)?;
+            if let MatchOutcome::Match(m) = &again
+                && individual_checks(m, candidate, &wider, config).is_none()
+            {
+                *window = wider;
+                outcome = again;
+            }
+        }
+    }
+    Ok(outcome)
+}
+
 /// Whether `outcome` of `candidate` is searched again over a larger window
 /// (`LoopConfig::escalate_window_factor`).
 fn escalates(
@@ -248,7 +260,7 @@ fn escalates(
     if config.escalate_window_factor <= 1.0
         || candidate.densify
         || candidate.wide
-        || candidate.predicted_overlap < config.escalate_min_predicted_overlap
+        || candidate.predicted_overlap < ESCALATE_MIN_PREDICTED_OVERLAP
     {
         return false;
     }
@@ -336,7 +348,7 @@ fn individual_checks(
     config: &LoopConfig,
 ) -> Option<RejectReason> {
     let q = &m.quality;
-    if q.mean_intensity < config.min_mean_intensity
+    if q.mean_intensity < config.gate.min_mean_intensity
         || q.inside_fraction < config.min_inside_fraction
     {
         return Some(RejectReason::Quality);
@@ -360,7 +372,7 @@ fn individual_checks(
         d.y -= along * u.y;
     }
     let dtheta = echofield_graph::wrap_angle(d.z);
-    let margin = 1.0 - config.window_edge_fraction;
+    let margin = 1.0 - WINDOW_EDGE_FRACTION;
     let at_edge = |offset: f64, half: f64| offset.abs() >= margin * half;
     if at_edge(d.x, window.x_m) || at_edge(d.y, window.y_m) || at_edge(dtheta, window.theta_rad) {
         return Some(RejectReason::WindowEdge);
@@ -441,7 +453,7 @@ mod tests {
         let mut c = candidate(SearchWindow::new(0.2, 0.3, 0.02));
         c.predicted_overlap = 0.9;
         let mut weak = match_with_sigma(0.1);
-        weak.quality.mean_intensity = 0.5 * config.min_mean_intensity;
+        weak.quality.mean_intensity = 0.5 * config.gate.min_mean_intensity;
         let failed = MatchOutcome::Match(Box::new(weak));
         let nothing = MatchOutcome::NoMatch {
             reason: crate::matcher::NoMatchReason::NoOverlap,
@@ -491,12 +503,12 @@ mod tests {
         let config = LoopConfig::default();
         let small = candidate(SearchWindow::new(0.1, 2.0, 0.01));
         let w = small.window(&config);
-        assert_eq!((w.x_m, w.y_m), (config.min_window.x_m, 2.0));
-        assert_eq!(w.theta_rad, config.min_window.theta_rad);
-        assert!(!small.too_uncertain(&config.max_window));
+        assert_eq!((w.x_m, w.y_m), (config.gate.min_window.x_m, 2.0));
+        assert_eq!(w.theta_rad, config.gate.min_window.theta_rad);
+        assert!(!small.too_uncertain(&config.gate.max_window));
         let large = candidate(SearchWindow::new(25.0, 1.0, 0.05));
-        assert!(large.too_uncertain(&config.max_window));
-        assert_eq!(large.window(&config).x_m, config.max_window.x_m);
+        assert!(large.too_uncertain(&config.gate.max_window));
+        assert_eq!(large.window(&config).x_m, config.gate.max_window.x_m);
         let record = large.record(12, &config);
         assert_eq!((record.from, record.to, record.examined_at), (0, 12, 12));
         assert!(record.matched.is_none() && !record.accepted);

@@ -1,10 +1,63 @@
 //! Parameters of loop closing: candidate gating, match checks and mutual
-//! consistency (TOML section `[loops]`).
+//! consistency (TOML section `[loops]`), and the constants that were keys
+//! of this section before issue 36, each with the reason it is fixed.
 
-use crate::config_check::{check_positive_window, check_range, check_window, check_window_order};
+use crate::config_check::{check_positive_window, check_range, check_window};
 use crate::error::FrontendError;
+use crate::matcher::MatchGate;
 use crate::matcher::SearchWindow as Window;
 use serde::{Deserialize, Serialize};
+
+/// When none of a node's candidates can be searched in a window within
+/// `gate.max_window`, this many of them (the best-overlapping) are searched
+/// over `gate.max_window` at once instead of being deferred. One: a first
+/// contact with a place seen long ago needs one loop to shrink the
+/// relative uncertainty of the others, which are then searched in their
+/// own windows; each wide search costs a full search of the largest window.
+pub const WIDE_SEARCHES_PER_NODE: usize = 1;
+
+/// A mission-pass candidate whose predicted overlap is at least this, but
+/// whose match fails the quality gate or finds nothing, is searched once
+/// more over a window `escalate_window_factor` times larger (module doc of
+/// `checks`): where the estimate says two scans overlap almost entirely,
+/// a match that lands on nothing says the prior is further off than its
+/// covariance. 0.8 keeps the retry to those near-certain overlaps.
+pub const ESCALATE_MIN_PREDICTED_OVERLAP: f64 = 0.8;
+
+/// A match that ends within this fraction of the window's half-width from
+/// its edge is rejected (`window_edge`): the true peak may lie outside the
+/// searched window. 5%: about one search step of the smallest windows.
+pub const WINDOW_EDGE_FRACTION: f64 = 0.05;
+
+/// Mutual consistency: two loops are consistent when the cycle they close
+/// with the dead-reckoning motions between their ends has a squared
+/// Mahalanobis distance at most this: 11.34, the 99% quantile of χ² with
+/// 3 degrees of freedom (a test level, not a tuning value).
+pub const CONSISTENCY_MAX_CHI2: f64 = 11.34;
+
+/// Correlation `ρ` (0-1) assumed between the errors of loops that share a
+/// node, applied to densified loops: a densified loop `(j, k)` enters the
+/// graph with its covariance multiplied by the design effect
+/// `1 + ρ·(m_j + m_k − 2)`, `m_x` the accepted loops at node `x` (module
+/// doc of `slam::loops` in the tools crate). 1: the densified loops at a
+/// node match the same walls from nearly the same place, so together they
+/// count about as much as one loop.
+pub const DENSIFY_CORRELATION: f64 = 1.0;
+
+/// Smallest predicted overlap (as for `min_predicted_overlap`) of a pair
+/// matched by densification: 0.4, the ground-truth overlap above which the
+/// evaluation counts a pair for recall (`evaluation.recall_min_overlap`).
+pub const DENSIFY_MIN_PREDICTED_OVERLAP: f64 = 0.4;
+
+/// Densification considers a pair only when its search window (`n_sigma`
+/// standard deviations of the relative uncertainty) is within these
+/// half-widths `[x_m, y_m, theta_rad]` (2 m, 2 m, 6°); it then climbs
+/// within `gate.min_window` of the estimate. A climb finds the nearest
+/// maximum, which is the right one only when the estimate is already
+/// within a few cells of a wall's width of it.
+pub fn densify_max_window() -> Window {
+    Window::new(2.0, 2.0, 6.0_f64.to_radians())
+}
 
 /// Loop-closure candidates, their checks and their mutual consistency.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -28,51 +81,27 @@ pub struct LoopConfig {
     /// over node pairs against time; `densify` matches the overlapping pairs
     /// left over after the mission (measured: EXPERIMENTS.md § Loop closures).
     pub max_candidates_per_node: usize,
-    /// Search half-width in standard deviations of the relative
-    /// uncertainty of the two nodes (propagated along the most certain path
-    /// of the current graph). Default 3.
-    pub n_sigma: f64,
-    /// Smallest search half-widths `[x_m, y_m, theta_rad]`. Default 0.5 m,
-    /// 0.5 m, 3°.
-    #[serde(with = "crate::matcher::window_key")]
-    pub min_window: Window,
-    /// The largest search half-widths. A candidate whose window would
-    /// exceed this on any axis is *deferred*: tried again when the graph
-    /// has become more certain (after other loops are accepted), and
-    /// reported as `deferred` if it never qualifies; except for the first
-    /// `wide_searches_per_node` of them per node, which are searched over
-    /// this window at once. Default 10 m, 10 m, 10°.
-    #[serde(with = "crate::matcher::window_key")]
-    pub max_window: Window,
-    /// When none of a node's candidates can be searched in a window within
-    /// `max_window` (a first contact with a place seen long ago, when
-    /// dead-reckoning drift makes the relative uncertainty large), this
-    /// many of them, the best-overlapping, are searched over `max_window`
-    /// at once instead of being deferred. Each costs a few milliseconds.
-    /// Default 1.
-    pub wide_searches_per_node: usize,
+    /// The search window and acceptance gate of a loop match
+    /// ([`MatchGate`], `[loops.gate]`; defaults [`MatchGate::loops`]). A
+    /// candidate whose window would exceed `gate.max_window` on any axis is
+    /// *deferred*: tried again when the graph has become more certain
+    /// (after other loops are accepted), and reported as `deferred` if it
+    /// never qualifies; except for the first [`WIDE_SEARCHES_PER_NODE`] of
+    /// them per node, which are searched over `gate.max_window` at once.
+    pub gate: MatchGate,
     /// A candidate of the mission pass (not a wide search, not
     /// densification) whose predicted overlap is at least
-    /// `escalate_min_predicted_overlap` but whose match fails the quality
+    /// [`ESCALATE_MIN_PREDICTED_OVERLAP`] but whose match fails the quality
     /// gate, or finds nothing, is searched once more over a window this
-    /// many times larger per axis (at most `max_window`); the second match
-    /// replaces the first only when it passes the individual checks. Where
-    /// the estimate says two scans overlap almost entirely, a match that
-    /// lands on nothing suggests the prior is further off than its
+    /// many times larger per axis (at most `gate.max_window`); the second
+    /// match replaces the first only when it passes the individual checks.
+    /// Where the estimate says two scans overlap almost entirely, a match
+    /// that lands on nothing suggests the prior is further off than its
     /// covariance says: dead-reckoning errors in sharp turns are larger
-    /// than its noise model (up to 1.6 m per rotation on the real St Pere
-    /// navigation). 1 disables it. Default 3.
+    /// than its noise model. 1 disables it. Default 3.
     pub escalate_window_factor: f64,
-    /// See `escalate_window_factor`. Default 0.8.
-    pub escalate_min_predicted_overlap: f64,
-    /// Matches whose mean image intensity under the points is below this
-    /// (`MatchQuality::mean_intensity`, 0-1) are rejected (`quality`).
-    /// Default 0.30, set with the images' off-axis suppression
-    /// (`image.off_axis`), which lowers the intensity around the walls that a
-    /// slightly distorted scan lands on (measured: EXPERIMENTS.md § Loop
-    /// closures).
-    pub min_mean_intensity: f64,
-    /// ... or whose fraction of points inside the image is below this.
+    /// Matches whose fraction of points inside the image is below this are
+    /// rejected (`quality`), as are those below `gate.min_mean_intensity`.
     /// Default 0.75. Nearly every loop that the quality gate rejects on the
     /// simulated marina fails this test, not the intensity one, and most of
     /// them are right; lowering it trades accuracy for recall (measured:
@@ -83,42 +112,19 @@ pub struct LoopConfig {
     /// rejected (`covariance`). Default 0.5 m, 0.5 m, 3°.
     #[serde(with = "crate::matcher::window_key")]
     pub max_sigma: Window,
-    /// Smallest standard deviations of a loop edge `[x_m, y_m,
-    /// theta_rad]` (the covariance of the score surface is inflated to at
-    /// least these). Default 0.05 m, 0.05 m, 0.5°.
-    #[serde(with = "crate::matcher::window_key")]
-    pub min_sigma: Window,
-    /// A match that ends within this fraction of the window's half-width
-    /// from its edge is rejected (`window_edge`): the true peak may lie
-    /// outside the searched window. Default 0.05.
-    pub window_edge_fraction: f64,
-    /// Symmetric check: `S_j` is matched against `I_k` by a climb from the
-    /// inverse of the forward match to the nearest maximum, within this
-    /// window `[x_m, y_m, theta_rad]`.
-    /// Default 0.5 m, 0.5 m, 3°.
-    #[serde(with = "crate::matcher::window_key")]
-    pub reverse_window: Window,
-    /// The forward match and the inverse of the reverse match must agree
-    /// to within this distance (m) ... Default 0.6. Two right matches of one
-    /// pair disagree by a few decimetres (the strongest echo of a wall seen
-    /// from two places is not the same spot), and often by just over 0.5 m; a
-    /// looser limit keeps the near misses (measured: EXPERIMENTS.md § Loop
-    /// closures).
-    pub reverse_max_translation_m: f64,
-    /// ... and this angle (rad). Default 2°.
-    pub reverse_max_rotation_rad: f64,
-    /// Mutual consistency: two loops are consistent when the cycle they
-    /// close with the dead-reckoning motions between their ends has a
-    /// squared Mahalanobis distance below this (3 degrees of freedom;
-    /// 11.34 is the 99% quantile). Default 11.34.
-    pub consistency_max_chi2: f64,
     /// Model error added to dead-reckoning motions (in search windows and
     /// in the consistency test) that the EKF's covariance does not hold
     /// (DVL scale error, a wandering compass error): a standard deviation
-    /// of this fraction of the distance travelled, per axis. Default 0.02.
+    /// of this fraction of the distance travelled, per axis, plus
+    /// `drift_heading_sigma_rad` in heading. Default 0.02.
     pub drift_fraction: f64,
-    /// ... plus this heading standard deviation (and its lever arm over
-    /// the distance between the two poses), rad. Default 2°.
+    /// The heading standard deviation of that model error (and its lever
+    /// arm over the distance between the two poses), rad. Default 2°.
+    ///
+    /// Not a config key (`#[serde(skip)]`): derived from
+    /// `dead_reckoning.heading_bias_sigma_rad` (`SlamConfig::derive` in the
+    /// tools crate), the same wandering compass error.
+    #[serde(skip)]
     pub drift_heading_sigma_rad: f64,
     /// After the mission, match every overlapping pair not yet examined
     /// whose relative pose the optimised estimate already knows well
@@ -127,22 +133,9 @@ pub struct LoopConfig {
     /// `max_candidates_per_node` best. A pair costs a local climb instead of a
     /// search of the window. Default true: it buys recall over node pairs for
     /// time, at the same ATE, provided the densified loops are down-weighted
-    /// (`densify_correlation`) and held to `densify_max_sigma` (measured:
+    /// ([`DENSIFY_CORRELATION`]) and held to `densify_max_sigma` (measured:
     /// EXPERIMENTS.md § Loop densification).
     pub densify: bool,
-    /// Densification considers a pair only when its search window
-    /// (`n_sigma` standard deviations of the relative uncertainty) is
-    /// within these half-widths `[x_m, y_m, theta_rad]`; it then climbs
-    /// within `min_window` of the estimate. Default 2 m, 2 m, 6°.
-    #[serde(with = "crate::matcher::window_key")]
-    pub densify_max_window: Window,
-    /// Correlation `ρ` (0-1) assumed between the errors of loops that share
-    /// a node, applied to densified loops: a densified loop `(j, k)` enters
-    /// the graph with its covariance multiplied by the design effect
-    /// `1 + ρ·(m_j + m_k − 2)`, `m_x` the accepted loops at node `x`
-    /// (module doc of `slam::loops` in the tools crate). Default 1.0: the densified
-    /// loops at a node count together about as much as one loop.
-    pub densify_correlation: f64,
     /// `max_sigma` for the densification pairs: densified matches whose
     /// standard deviation exceeds `[x_m, y_m, theta_rad]` on any axis are
     /// rejected (`covariance`). Default 0.35 m, 0.35 m, 3°: the marina's false
@@ -174,14 +167,6 @@ pub struct LoopConfig {
     /// reckoning's, were false more often and are not made (measured:
     /// EXPERIMENTS.md § Loop densification).
     pub densify_partial: bool,
-    /// Smallest predicted overlap (as for `min_predicted_overlap`) of a
-    /// pair matched by `densify`. Default 0.4, the ground-truth overlap
-    /// above which the evaluation counts a pair for recall
-    /// (`evaluation.recall_min_overlap`). The candidates while the mission
-    /// runs keep `min_predicted_overlap`: lowering that one as well cost
-    /// accuracy on the St Pere replay (measured: EXPERIMENTS.md § Loop
-    /// densification).
-    pub densify_min_predicted_overlap: f64,
     /// Loop sparsification ([`cover`](crate::loops::cover)), metres
     /// of track travelled by dead reckoning: a pair `(j, k)` is neither
     /// matched nor kept when an accepted loop joins a node within this
@@ -204,35 +189,23 @@ impl Default for LoopConfig {
             min_separation_nodes: 10,
             min_predicted_overlap: 0.5,
             max_candidates_per_node: 4,
-            n_sigma: 3.0,
-            min_window: Window::new(0.5, 0.5, 3.0_f64.to_radians()),
-            max_window: Window::new(10.0, 10.0, 10.0_f64.to_radians()),
-            wide_searches_per_node: 1,
+            gate: MatchGate::loops(),
             escalate_window_factor: 3.0,
-            escalate_min_predicted_overlap: 0.8,
-            min_mean_intensity: 0.30,
             min_inside_fraction: 0.75,
             max_sigma: Window::new(0.5, 0.5, 3.0_f64.to_radians()),
-            min_sigma: Window::new(0.05, 0.05, 0.5_f64.to_radians()),
-            window_edge_fraction: 0.05,
-            reverse_window: Window::new(0.5, 0.5, 3.0_f64.to_radians()),
-            reverse_max_translation_m: 0.6,
-            reverse_max_rotation_rad: 2.0_f64.to_radians(),
-            consistency_max_chi2: 11.34,
             drift_fraction: 0.02,
             drift_heading_sigma_rad: 2.0_f64.to_radians(),
             densify: true,
-            densify_max_window: Window::new(2.0, 2.0, 6.0_f64.to_radians()),
-            densify_correlation: 1.0,
             densify_max_sigma: Window::new(0.35, 0.35, 3.0_f64.to_radians()),
             densify_partial: true,
-            densify_min_predicted_overlap: 0.4,
             cover_spacing_m: 0.0,
         }
     }
 }
 
 impl LoopConfig {
+    /// Checks every key; errors name it by its TOML path
+    /// (`loops.gate.max_window[0] (x_m)`).
     pub fn validate(&self) -> Result<(), FrontendError> {
         if self.min_separation_nodes < 2 {
             return Err(FrontendError::config(
@@ -246,19 +219,13 @@ impl LoopConfig {
             0.0,
             1.0,
         )?;
-        check_range(
-            "loops.densify_min_predicted_overlap",
-            self.densify_min_predicted_overlap,
-            0.0,
-            1.0,
-        )?;
         if self.max_candidates_per_node == 0 {
             return Err(FrontendError::config(
                 "loops.max_candidates_per_node",
                 "must be at least 1 (set `enabled = false` to close no loops)",
             ));
         }
-        check_range("loops.n_sigma", self.n_sigma, 0.1, 100.0)?;
+        self.gate.validate("loops")?;
         check_range("loops.cover_spacing_m", self.cover_spacing_m, 0.0, 1000.0)?;
         check_range(
             "loops.escalate_window_factor",
@@ -267,71 +234,16 @@ impl LoopConfig {
             100.0,
         )?;
         check_range(
-            "loops.escalate_min_predicted_overlap",
-            self.escalate_min_predicted_overlap,
-            0.0,
-            1.0,
-        )?;
-        check_window("loops.min_window", &self.min_window)?;
-        check_window("loops.max_window", &self.max_window)?;
-        check_positive_window("loops.max_window", &self.max_window)?;
-        check_window_order(
-            "loops.min_window",
-            &self.min_window,
-            "loops.max_window",
-            &self.max_window,
-        )?;
-        check_range(
-            "loops.min_mean_intensity",
-            self.min_mean_intensity,
-            0.0,
-            1.0,
-        )?;
-        check_range(
             "loops.min_inside_fraction",
             self.min_inside_fraction,
             0.0,
             1.0,
         )?;
         check_window("loops.max_sigma", &self.max_sigma)?;
-        check_window("loops.min_sigma", &self.min_sigma)?;
-        check_range(
-            "loops.window_edge_fraction",
-            self.window_edge_fraction,
-            0.0,
-            0.5,
-        )?;
-        check_window("loops.reverse_window", &self.reverse_window)?;
-        check_range(
-            "loops.reverse_max_translation_m",
-            self.reverse_max_translation_m,
-            0.0,
-            100.0,
-        )?;
-        check_range(
-            "loops.reverse_max_rotation_rad",
-            self.reverse_max_rotation_rad,
-            0.0,
-            std::f64::consts::PI,
-        )?;
-        check_range(
-            "loops.consistency_max_chi2",
-            self.consistency_max_chi2,
-            0.0,
-            1e12,
-        )?;
+        check_positive_window("loops.max_sigma", &self.max_sigma)?;
         check_range("loops.drift_fraction", self.drift_fraction, 0.0, 10.0)?;
-        check_window("loops.densify_max_window", &self.densify_max_window)?;
-        check_positive_window("loops.densify_max_window", &self.densify_max_window)?;
         check_window("loops.densify_max_sigma", &self.densify_max_sigma)?;
         check_positive_window("loops.densify_max_sigma", &self.densify_max_sigma)?;
-        check_positive_window("loops.max_sigma", &self.max_sigma)?;
-        check_range(
-            "loops.densify_correlation",
-            self.densify_correlation,
-            0.0,
-            1.0,
-        )?;
         check_range(
             "loops.drift_heading_sigma_rad",
             self.drift_heading_sigma_rad,

@@ -67,13 +67,25 @@ pub struct BeamWidthCorrection {
     pub beam_width_rad: f64,
     /// Exponent `k` of the backscatter law `cos^k α`; 2 (Lambert) by
     /// default.
+    ///
+    /// Not a config key (`#[serde(skip)]`: config files keep the default;
+    /// library callers may set it): Lambert's law (2), the physical model of the correction.
+    #[serde(skip)]
     pub backscatter_exponent: f64,
     /// Incidences above this are corrected as at this angle, radians.
     /// Default 75°.
+    ///
+    /// Not a config key (`#[serde(skip)]`: config files keep the default;
+    /// library callers may set it): a numerical guard of the correction at grazing incidence.
+    #[serde(skip)]
     pub max_incidence_rad: f64,
     /// Largest turn between the chords from the previous return to this one
     /// and from this one to the next for the wall direction to be used,
     /// radians. Default 20°.
+    ///
+    /// Not a config key (`#[serde(skip)]`: config files keep the default;
+    /// library callers may set it): a geometric guard of the wall-direction estimate.
+    #[serde(skip)]
     pub max_bend_rad: f64,
 }
 

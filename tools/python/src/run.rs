@@ -277,16 +277,16 @@ impl RunResult {
 fn loops_dict<'py>(py: Python<'py>, slam: &SlamOutput) -> PyResult<Bound<'py, PyDict>> {
     let loops = &slam.loops;
     let dict = PyDict::new(py);
-    let ints = |f: fn(&echofield::slam::LoopRecord) -> u64| {
+    let ints = |f: fn(&echofield_frontend::loops::LoopRecord) -> u64| {
         PyArray1::from_vec(py, loops.iter().map(f).collect())
     };
-    let bools = |f: fn(&echofield::slam::LoopRecord) -> bool| {
+    let bools = |f: fn(&echofield_frontend::loops::LoopRecord) -> bool| {
         PyArray1::from_vec(py, loops.iter().map(f).collect())
     };
-    let floats = |f: fn(&echofield::slam::LoopRecord) -> Option<f64>| {
+    let floats = |f: fn(&echofield_frontend::loops::LoopRecord) -> Option<f64>| {
         PyArray1::from_vec(py, loops.iter().map(|l| f(l).unwrap_or(f64::NAN)).collect())
     };
-    let poses = |f: fn(&echofield::slam::LoopRecord) -> Option<Se2>| {
+    let poses = |f: fn(&echofield_frontend::loops::LoopRecord) -> Option<Se2>| {
         rows_array(
             py,
             loops

@@ -2,10 +2,10 @@
 //! rotations and how far its trajectory drifts, against ground truth.
 
 use anyhow::{Context, Result};
+use echofield::matching::MissionRotations;
 use echofield::matching::navigation_eval::{
     Distortion, distortion, ground_truth_navigation, trajectory_errors, wall_fractions,
 };
-use echofield::matching::{MatchingConfig, MissionRotations};
 use echofield::slam::SlamConfig;
 use echofield_datasets::sim::{Scenario, simulate_mission};
 use echofield_datasets::stpere::read_stpere_dir;
@@ -72,8 +72,8 @@ pub struct Args {
 
 pub fn run(args: Args) -> Result<()> {
     let config = match &args.config {
-        Some(path) => MatchingConfig::from_toml_file(path)?,
-        None => MatchingConfig::default(),
+        Some(path) => SlamConfig::from_toml_file(path)?,
+        None => SlamConfig::default(),
     };
     let (mission, scenario) = match (&args.scenario, &args.stpere, &args.mission) {
         (Some(name), None, None) => {
@@ -124,7 +124,7 @@ pub fn run(args: Args) -> Result<()> {
         }
     }
     if args.slam {
-        let report = rotations.use_slam_navigation(&config, &SlamConfig::default())?;
+        let report = rotations.use_slam_navigation(&config)?;
         let d = distortion(
             &rotations.mission,
             &rotations.rotations,

@@ -2,8 +2,8 @@
 //! against ground truth, side by side with point-to-point ICP.
 
 use anyhow::{Context, Result};
+use echofield::matching::MissionRotations;
 use echofield::matching::evaluation::{EvaluationConfig, evaluate};
-use echofield::matching::{MatchingConfig, MissionRotations};
 use echofield::output::write_bytes_atomic;
 use echofield::slam::SlamConfig;
 use echofield_datasets::sim::{Scenario, simulate_mission};
@@ -106,8 +106,8 @@ pub struct Args {
 pub fn run(args: Args) -> Result<()> {
     super::prepare_output_files([args.json.as_ref()])?;
     let config = match &args.config {
-        Some(path) => MatchingConfig::from_toml_file(path)?,
-        None => MatchingConfig::default(),
+        Some(path) => SlamConfig::from_toml_file(path)?,
+        None => SlamConfig::default(),
     };
     let mission = match (&args.scenario, &args.mission) {
         (Some(name), None) => {
@@ -124,7 +124,7 @@ pub fn run(args: Args) -> Result<()> {
         NavigationSource::DeadReckoning => {}
         NavigationSource::GroundTruth => rotations.use_ground_truth_navigation()?,
         NavigationSource::Slam => {
-            let report = rotations.use_slam_navigation(&config, &SlamConfig::default())?;
+            let report = rotations.use_slam_navigation(&config)?;
             if let Some(ate) = report.ate_rmse_m {
                 println!("SLAM run for the motion compensation: ATE RMSE {ate:.3} m");
             }

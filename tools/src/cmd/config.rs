@@ -9,14 +9,14 @@ use clap::Parser;
   echofield config > my.toml
   # one section with its sub-tables, or one sub-table
   echofield config --section loops
-  echofield config --section loops.max_window
+  echofield config --section loops.gate
   # how many keys have a default
   echofield config --list-keys | wc -l")]
 pub struct Args {
-    /// Print only this section (`loops`) or sub-table (`loops.max_window`).
+    /// Print only this section (`loops`) or sub-table (`loops.gate`).
     #[arg(long, value_name = "NAME")]
     pub section: Option<String>,
-    /// Print the full path of each key (`loops.max_window.x_m`), one a
+    /// Print the full path of each key (`loops.gate.max_window`), one a
     /// line, instead of the documented TOML. The optional keys without a
     /// default (listed in the header of `echofield config`) are not among
     /// them.

@@ -2,9 +2,10 @@
 //! image of another (the paper's measurement model, eq. 5-6).
 
 use anyhow::{Context, Result, bail};
+use echofield::matching::MissionRotations;
 use echofield::matching::plots::{self, Marker};
-use echofield::matching::{MatchingConfig, MissionRotations};
 use echofield::output::write_bytes_atomic;
+use echofield::slam::SlamConfig;
 use echofield_frontend::matcher::{MatchOutcome, SearchWindow, match_scan};
 use echofield_graph::Se2;
 use nalgebra::Matrix3;
@@ -37,8 +38,9 @@ margins are for heads that show decibels.
 MISSION is an echofield MCAP file, a St Pere log folder, a Ping360 .bin
 log or a MiniKing .bag. Rotations are numbered from 0 in time order.
 Without --prior the prior is the dead-reckoning motion between the two
-rotations' central times and the window is n_sigma standard deviations of
-it (config [window]); --prior x,y,theta (metres, metres, degrees) is the
+rotations' central times and the window is that of a loop candidate
+(config [loops.gate]: n_sigma standard deviations of it, clamped to
+min_window and max_window; max_window without a covariance); --prior x,y,theta (metres, metres, degrees) is the
 pose of the scan's frame in the image's frame.
 
 OUT.json holds pose [x, y, theta] (theta in radians), score (eq. 5),
@@ -71,8 +73,9 @@ pub struct Args {
     /// derived from the prior's covariance.
     #[arg(long, value_parser = parse_triple)]
     pub window: Option<[f64; 3]>,
-    /// Configuration (TOML with sections [dead_reckoning], [rotation],
-    /// [segmentation], [image], [matcher], [window]); defaults otherwise.
+    /// Configuration: the file `echofield run --config` reads (this
+    /// command uses [dead_reckoning], [rotation], [segmentation], [image],
+    /// [matcher] and [loops.gate]); defaults otherwise.
     #[arg(long)]
     pub config: Option<PathBuf>,
     /// Where to write the result (JSON).
@@ -104,8 +107,8 @@ pub fn run(args: Args) -> Result<()> {
         args.overlay.as_ref(),
     ])?;
     let config = match &args.config {
-        Some(path) => MatchingConfig::from_toml_file(path)?,
-        None => MatchingConfig::default(),
+        Some(path) => SlamConfig::from_toml_file(path)?,
+        None => SlamConfig::default(),
     };
     let mission = MissionRotations::load(&args.mission, &config)?;
     let scan = mission.scan(args.scan, &config)?;
@@ -119,8 +122,8 @@ pub fn run(args: Args) -> Result<()> {
     };
     let window = match (args.window, prior_covariance) {
         (Some([x, y, deg]), _) => SearchWindow::new(x, y, deg.to_radians()),
-        (None, Some(cov)) => config.window.window(&cov),
-        (None, None) => config.window.max,
+        (None, Some(cov)) => config.loops.gate.window(&cov),
+        (None, None) => config.loops.gate.max_window,
     };
     let outcome =
         match_scan(&scan.points, &image, &prior, &window, &config.matcher).context("matching")?;

@@ -18,13 +18,13 @@
 //! number of map nodes it overlaps.
 
 use crate::eval::align_se2;
-use crate::slam::nodes::{NodeData, Skip, build_node};
 use crate::slam::outputs::mosaic::{MosaicBlend, MosaicConfig, build_mosaic};
 use crate::slam::pipeline::prepare;
 use crate::slam::{SlamConfig, load_mission_with_keyframes};
 use anyhow::{Context, Result, bail};
 use echofield_frontend::dead_reckoning;
 use echofield_frontend::localization::{LikelihoodField, LocalizationConfig};
+use echofield_frontend::nodes::{NodeData, Skip, build_node};
 use echofield_frontend::rotation::assemble_rotations;
 use echofield_frontend::sensors::Mission;
 use echofield_graph::Se2;

@@ -13,12 +13,12 @@
 //! raises the heading noise after a gyro fault.
 
 use crate::slam::SlamConfig;
-use crate::slam::nodes::{Skip, build_node};
 use crate::slam::pipeline::prepare;
 use anyhow::{Context, Result, bail};
 use echofield_datasets::mcap::foxglove::ScanPoint;
 use echofield_frontend::dead_reckoning::{self, DeadReckoningConfig, ForwardFilter, Record};
 use echofield_frontend::localization::{LocalizationStep, MonteCarloLocalizer};
+use echofield_frontend::nodes::{Skip, build_node};
 use echofield_frontend::rotation::{Rotation, RotationStream};
 use echofield_frontend::sensors::{GroundTruthPose, Mission};
 use echofield_graph::Se2;

@@ -45,7 +45,8 @@
 //! (negative: the match is short), and in heading. Use it with
 //! `--navigation ground-truth`, so that motion compensation adds nothing.
 
-use super::{MatchingConfig, MissionRotations};
+use super::MissionRotations;
+use crate::slam::SlamConfig;
 use anyhow::Result;
 use echofield_frontend::icp::{IcpConfig, icp, kdtree::KdTree};
 use echofield_frontend::matcher::{MatchOutcome, SearchWindow, match_scan, mean_score};
@@ -202,7 +203,7 @@ pub struct Evaluation {
 /// Runs the evaluation on a mission with ground truth.
 pub fn evaluate(
     mission: &MissionRotations,
-    config: &MatchingConfig,
+    config: &SlamConfig,
     eval: &EvaluationConfig,
 ) -> Result<Evaluation> {
     let n = mission.rotations.len();
@@ -334,7 +335,7 @@ pub fn evaluate(
 /// compensation), without the beam-width correction and without the
 /// off-axis suppression, for choosing pairs independently of the navigation
 /// and of the scan building evaluated.
-fn exact_scans(mission: &MissionRotations, config: &MatchingConfig) -> Result<Vec<Option<Scan>>> {
+fn exact_scans(mission: &MissionRotations, config: &SlamConfig) -> Result<Vec<Option<Scan>>> {
     let truth = super::navigation_eval::ground_truth_navigation(&mission.mission)?;
     let segmentation = SegmentationConfig {
         beam_width: BeamWidthCorrection::off(),

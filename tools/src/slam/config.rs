@@ -28,7 +28,7 @@ use echofield_frontend::config_check;
 use echofield_frontend::dead_reckoning::DeadReckoningConfig;
 use echofield_frontend::image::ImageConfig;
 use echofield_frontend::loops::LoopConfig;
-use echofield_frontend::matcher::MatcherConfig;
+use echofield_frontend::matcher::{MatchGate, MatcherConfig};
 use echofield_frontend::mounting::MountingConfig;
 use echofield_frontend::rotation::RotationConfig;
 use echofield_frontend::segmentation::SegmentationConfig;
@@ -85,10 +85,48 @@ impl SlamConfig {
     /// key is an error naming its path, an invalid value an error naming
     /// its field.
     pub fn from_toml_str(text: &str) -> Result<Self, SlamError> {
-        let config = crate::config_file::from_toml_over(text, &Self::default())
+        crate::config_file::check_removed_keys(text)
             .map_err(|e| SlamError::config(e.path, e.message))?;
+        let config = crate::config_file::from_toml_over(text, &Self::default())
+            .map_err(|e| SlamError::config(e.path, e.message))?
+            .derive();
         config.validate()?;
         Ok(config)
+    }
+
+    /// The values derived from other sections, in this one place: the
+    /// image's range smoothing and blind zone are the segmentation's
+    /// (`segmentation.smoothing_bins`, `segmentation.blind_zone_m`), so that
+    /// the image `I_k` peaks at the ranges of the scan `S_k` and clears the
+    /// same ringing; the heading term of the loop closer's drift model
+    /// (`LoopConfig::drift_heading_sigma_rad`) is the dead reckoning's
+    /// wandering heading error (`dead_reckoning.heading_bias_sigma_rad`).
+    /// Each derived value that differs from the library default is logged.
+    pub fn derive(mut self) -> Self {
+        let image = &mut self.image;
+        let segmentation = &self.segmentation;
+        if image.range_smoothing_bins != segmentation.smoothing_bins {
+            tracing::info!(
+                "image range smoothing: {} bins (segmentation.smoothing_bins)",
+                segmentation.smoothing_bins
+            );
+            image.range_smoothing_bins = segmentation.smoothing_bins;
+        }
+        if image.blind_zone_m != segmentation.blind_zone_m {
+            tracing::info!(
+                "image blind zone: {} m (segmentation.blind_zone_m)",
+                segmentation.blind_zone_m
+            );
+            image.blind_zone_m = segmentation.blind_zone_m;
+        }
+        let heading = self.dead_reckoning.heading_bias_sigma_rad;
+        if self.loops.drift_heading_sigma_rad != heading {
+            tracing::info!(
+                "loop drift heading sigma: {heading} rad (dead_reckoning.heading_bias_sigma_rad)"
+            );
+            self.loops.drift_heading_sigma_rad = heading;
+        }
+        self
     }
 
     /// Reads a TOML file (see [`SlamConfig::from_toml_str`]).
@@ -135,36 +173,9 @@ impl SlamConfig {
     }
 }
 
-/// The config form of a window is the matcher's [`SearchWindow`] (one
-/// window type); the alias keeps the name the sections used.
-pub use echofield_frontend::matcher::SearchWindow as Window;
-
 /// [`echofield_frontend::config_check::check_range`] as a [`SlamError`].
 pub(crate) fn check_range(field: &str, value: f64, lo: f64, hi: f64) -> Result<(), SlamError> {
     config_check::check_range(field, value, lo, hi).map_err(SlamError::from_config)
-}
-
-/// [`echofield_frontend::config_check::check_window`] as a [`SlamError`].
-pub(crate) fn check_window(field: &str, window: &Window) -> Result<(), SlamError> {
-    config_check::check_window(field, window).map_err(SlamError::from_config)
-}
-
-/// [`echofield_frontend::config_check::check_positive_window`] as a
-/// [`SlamError`].
-pub(crate) fn check_positive_window(field: &str, window: &Window) -> Result<(), SlamError> {
-    config_check::check_positive_window(field, window).map_err(SlamError::from_config)
-}
-
-/// [`echofield_frontend::config_check::check_window_order`] as a
-/// [`SlamError`].
-pub(crate) fn check_window_order(
-    lower_field: &str,
-    lower: &Window,
-    upper_field: &str,
-    upper: &Window,
-) -> Result<(), SlamError> {
-    config_check::check_window_order(lower_field, lower, upper_field, upper)
-        .map_err(SlamError::from_config)
 }
 
 /// Sequential matching: `S_k` against `I_{k-1}` with the dead-reckoning
@@ -175,99 +186,40 @@ pub struct SequentialConfig {
     /// Match consecutive rotations at all (false: dead reckoning only
     /// between consecutive nodes). Default true.
     pub enabled: bool,
-    /// Search half-width in standard deviations of the dead-reckoning
-    /// motion's covariance. Default 3.
-    pub n_sigma: f64,
-    /// Smallest search half-widths `[x_m, y_m, theta_rad]`. Default
-    /// 0.5 m, 0.5 m, 3°.
-    #[serde(with = "echofield_frontend::matcher::window_key")]
-    pub min_window: Window,
-    /// Largest search half-widths. Default 3 m, 3 m, 15°.
-    #[serde(with = "echofield_frontend::matcher::window_key")]
-    pub max_window: Window,
-    /// A match whose mean image intensity under the points
-    /// (`MatchQuality::mean_intensity`, 0-1) is below this is not used.
-    /// Default 0.15.
-    pub min_mean_intensity: f64,
-    /// Largest squared Mahalanobis distance between the match and the
-    /// dead-reckoning motion, with both covariances (3 degrees of
-    /// freedom; 16.3 is the 99.9% quantile). Larger: the match is not
-    /// used. Default 16.3.
-    pub max_prior_chi2: f64,
-    /// Smallest standard deviations `[x_m, y_m, theta_rad]` of a sequential
-    /// edge: the match covariance is inflated to at least these (the score
-    /// surface's covariance does not include the errors of motion
-    /// compensation, which grow with the dead-reckoning error inside a
-    /// rotation). Default 0.1 m, 0.1 m, 0.75°.
-    #[serde(with = "echofield_frontend::matcher::window_key")]
-    pub min_sigma: Window,
     /// Also match `S_{k-1}` against `I_k` (module `symmetric`): the edge
     /// then carries the mean of both matches, and is not added when they
-    /// disagree beyond the tolerances below. Doubles the cost of
-    /// sequential matching. Default true.
+    /// disagree beyond `gate.reverse_max_translation_m` or 2°. Doubles the
+    /// cost of sequential matching. Default true.
     pub symmetric: bool,
-    /// Window of the reverse match around the inverse of the forward one.
-    /// Default 0.5 m, 0.5 m, 3°.
-    #[serde(with = "echofield_frontend::matcher::window_key")]
-    pub reverse_window: Window,
-    /// Largest disagreement of the two matches, m. Default 0.75.
-    pub reverse_max_translation_m: f64,
-    /// ... and rad. Default 2°.
-    pub reverse_max_rotation_rad: f64,
+    /// The search window and acceptance gate of a sequential match
+    /// ([`MatchGate`], `[sequential.gate]`, defaults
+    /// [`MatchGate::sequential`]); the prior is the dead-reckoning motion.
+    pub gate: MatchGate,
 }
+
+/// Largest squared Mahalanobis distance between a sequential match and
+/// the dead-reckoning motion, with both covariances: 16.3, the 99.9%
+/// quantile of χ² with 3 degrees of freedom. Larger: the match is not
+/// used. A test level rather than a tuning value (both covariances are
+/// the models' own), so not a config key.
+pub const SEQUENTIAL_MAX_PRIOR_CHI2: f64 = 16.3;
 
 impl Default for SequentialConfig {
     fn default() -> Self {
         Self {
             enabled: true,
-            n_sigma: 3.0,
-            min_window: Window::new(0.5, 0.5, 3.0_f64.to_radians()),
-            max_window: Window::new(3.0, 3.0, 15.0_f64.to_radians()),
-            min_mean_intensity: 0.15,
-            max_prior_chi2: 16.3,
-            min_sigma: Window::new(0.1, 0.1, 0.75_f64.to_radians()),
             symmetric: true,
-            reverse_window: Window::new(0.5, 0.5, 3.0_f64.to_radians()),
-            reverse_max_translation_m: 0.75,
-            reverse_max_rotation_rad: 2.0_f64.to_radians(),
+            gate: MatchGate::sequential(),
         }
     }
 }
 
 impl SequentialConfig {
+    /// Checks the gate; errors name the key (`sequential.gate.n_sigma`).
     pub fn validate(&self) -> Result<(), SlamError> {
-        check_range("sequential.n_sigma", self.n_sigma, 0.1, 100.0)?;
-        check_window("sequential.min_window", &self.min_window)?;
-        check_window("sequential.max_window", &self.max_window)?;
-        check_positive_window("sequential.max_window", &self.max_window)?;
-        check_window_order(
-            "sequential.min_window",
-            &self.min_window,
-            "sequential.max_window",
-            &self.max_window,
-        )?;
-        check_range(
-            "sequential.min_mean_intensity",
-            self.min_mean_intensity,
-            0.0,
-            1.0,
-        )?;
-        check_range("sequential.max_prior_chi2", self.max_prior_chi2, 0.0, 1e12)?;
-        check_window("sequential.min_sigma", &self.min_sigma)?;
-        check_window("sequential.reverse_window", &self.reverse_window)?;
-        check_range(
-            "sequential.reverse_max_translation_m",
-            self.reverse_max_translation_m,
-            0.0,
-            100.0,
-        )?;
-        check_range(
-            "sequential.reverse_max_rotation_rad",
-            self.reverse_max_rotation_rad,
-            0.0,
-            std::f64::consts::PI,
-        )?;
-        Ok(())
+        self.gate
+            .validate("sequential")
+            .map_err(SlamError::from_config)
     }
 }
 
@@ -280,6 +232,10 @@ pub struct BackendConfig {
     /// get corrected priors and small search windows. Default true.
     pub incremental: bool,
     /// Iteration limit of an incremental solve. Default 10.
+    ///
+    /// Not a config key (`#[serde(skip)]`: config files keep the default;
+    /// library callers may set it): the incremental solves are warm started and only have to follow the newest loops; the final solve's `solver.max_iterations` is the one a user sets.
+    #[serde(skip)]
     pub incremental_max_iterations: usize,
     /// Standard deviation of a heading prior on every node, rad: the
     /// dead-reckoning heading, which a compass bounds in absolute terms,
@@ -468,16 +424,20 @@ pub struct EvaluationConfig {
     /// Scan overlap of a node pair: the fraction of the points of `S_k`,
     /// placed in node `j`'s frame with the ground-truth relative pose, that
     /// lie within this distance of a point of `S_j`, metres. Default 0.5.
+    ///
+    /// Not a config key (`#[serde(skip)]`: config files keep the default;
+    /// library callers may set it): the 0.5 m cell of the overlap measure, fixed so that recall figures stay comparable between runs.
+    #[serde(skip)]
     pub overlap_distance_m: f64,
     /// Node pairs with at least this ground-truth scan overlap (and at
     /// least `loops.min_separation_nodes` apart) form the recall set.
     /// Default 0.4: the lowest overlap at which a correctly registered
     /// pair can pass the loop quality gate. The matcher's mean intensity
     /// at the true relative pose is about the overlap (EXPERIMENTS.md §
-    /// Evaluation), and `loops.min_mean_intensity` was 0.35 when this was
+    /// Evaluation), and `loops.gate.min_mean_intensity` was 0.35 when this was
     /// set (0.30 now), so pairs that overlap less can hardly be closed by
     /// any pose the matcher finds; they are not misses of the loop closer.
-    /// Lower it together with `loops.min_mean_intensity`.
+    /// Lower it together with `loops.gate.min_mean_intensity`.
     pub recall_min_overlap: f64,
     /// Distances of the relative pose error, metres. Default 10, 50, 100.
     pub rpe_distances_m: Vec<f64>,
@@ -531,27 +491,35 @@ impl EvaluationConfig {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use echofield_frontend::matcher::SearchWindow;
 
     #[test]
     fn a_window_is_one_key_and_its_old_table_form_says_what_replaces_it() {
-        let config = SlamConfig::from_toml_str("[loops]\nmax_window = [8, 8.5, 0.15]\n").unwrap();
-        assert_eq!(config.loops.max_window, Window::new(8.0, 8.5, 0.15));
-        assert_eq!(config.loops.min_window, LoopConfig::default().min_window);
+        let config =
+            SlamConfig::from_toml_str("[loops.gate]\nmax_window = [8, 8.5, 0.15]\n").unwrap();
+        assert_eq!(
+            config.loops.gate.max_window,
+            SearchWindow::new(8.0, 8.5, 0.15)
+        );
+        assert_eq!(
+            config.loops.gate.min_window,
+            LoopConfig::default().gate.min_window
+        );
 
-        let old = "[sequential.min_window]\nx_m = 0.4\ny_m = 0.4\ntheta_rad = 0.05\n";
+        let old = "[sequential.gate.min_window]\nx_m = 0.4\ny_m = 0.4\ntheta_rad = 0.05\n";
         let message = format!("{:#}", SlamConfig::from_toml_str(old).unwrap_err());
-        assert!(message.contains("sequential.min_window"), "{message}");
+        assert!(message.contains("sequential.gate.min_window"), "{message}");
         assert!(message.contains("[x_m, y_m, theta_rad]"), "{message}");
         assert_eq!(
-            message.matches("sequential.min_window").count(),
+            message.matches("sequential.gate.min_window").count(),
             1,
             "{message}"
         );
 
-        let bad = "[loops]\nmin_window = [0.5, 0.5, 4.0]\n";
+        let bad = "[loops.gate]\nmin_window = [0.5, 0.5, 4.0]\n";
         let message = SlamConfig::from_toml_str(bad).unwrap_err().to_string();
         assert!(
-            message.contains("loops.min_window[2] (theta_rad)"),
+            message.contains("loops.gate.min_window[2] (theta_rad)"),
             "{message}"
         );
     }

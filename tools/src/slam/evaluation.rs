@@ -55,12 +55,12 @@
 //!   accepted every right match: what tuning `[loops]` can reach at best
 //!   with the same matches.
 
-use super::config::SlamConfig;
-use super::result::{
-    LoopEvaluation, LoopRecord, NodeRecord, RecallBin, RecallBudget, RejectReason, Report,
-};
+use super::config::{EvaluationConfig, SlamConfig};
+use super::node_record::NodeRecord;
+use super::result::{LoopEvaluation, RecallBin, RecallBudget, Report};
 use crate::eval::{Alignment, ate, cumulative_distance, rpe};
 use crate::matching::ground_truth_at;
+use echofield_frontend::loops::{LoopRecord, RejectReason};
 use echofield_frontend::nodes::NodeData;
 use echofield_frontend::scan::Scan;
 use echofield_frontend::sensors::GroundTruthPose;
@@ -91,133 +91,216 @@ pub fn evaluate(
     }
     trajectory_errors(ground_truth, nodes, config, report);
     let eval = &config.evaluation;
-    let gt: Vec<Option<Se2>> = nodes.iter().map(|n| n.ground_truth).collect();
-    let relative = |j: usize, k: usize| Some(gt[j]?.between(&gt[k]?));
-    let grids: Vec<OccupancyGrid> = node_data
-        .iter()
-        .map(|n| OccupancyGrid::new(&n.scan, eval.overlap_distance_m))
-        .collect();
-    let overlap = |j: usize, k: usize| -> Option<f64> {
-        let j_from_k = relative(j, k)?;
-        let reach = node_data[j].footprint_m + node_data[k].footprint_m;
-        if j_from_k.translation().norm() > reach {
-            return Some(0.0);
-        }
-        Some(grids[j].overlap(&node_data[k].scan, &j_from_k))
-    };
-    let mut true_positive_pairs = HashSet::new();
-    let (mut tp, mut fp, mut candidate_tp) = (0, 0, 0);
-    let (mut partial, mut partial_fp, mut partial_constrained) = (0, 0, 0);
-    for record in loops.iter_mut() {
-        let (j, k) = (record.from as usize, record.to as usize);
-        record.ground_truth = relative(j, k);
-        record.gt_overlap = overlap(j, k);
-        let (Some(truth), Some(matched)) = (record.ground_truth, record.measurement) else {
-            continue;
-        };
-        let error = truth.between(&matched);
-        record.gt_error_m = Some(error.translation().norm());
-        record.gt_error_deg = Some(error.theta().abs().to_degrees());
-        let is_tp = error.translation().norm() <= eval.true_positive_translation_m
-            && error.theta().abs().to_degrees() <= eval.true_positive_rotation_deg;
-        record.true_positive = Some(is_tp);
-        candidate_tp += usize::from(is_tp);
-        if record.accepted {
-            if is_tp {
-                tp += 1;
-                true_positive_pairs.insert((j, k));
-            } else {
-                fp += 1;
-            }
-            if let Some([ux, uy]) = record.unconstrained_direction {
-                partial += 1;
-                partial_fp += usize::from(!is_tp);
-                // The error across the unconstrained direction, in `from`'s
-                // frame like the direction.
-                let across = (matched.translation() - truth.translation())
-                    .dot(&nalgebra::Vector2::new(-uy, ux))
-                    .abs();
-                partial_constrained += usize::from(
-                    across <= eval.true_positive_translation_m
-                        && error.theta().abs().to_degrees() <= eval.true_positive_rotation_deg,
-                );
-            }
-        }
-    }
-    let mut outcomes: HashMap<(usize, usize), Vec<MatchOutcome>> = HashMap::new();
-    for record in loops.iter() {
-        outcomes
-            .entry((record.from as usize, record.to as usize))
-            .or_default()
-            .push(MatchOutcome::of(record));
-    }
-    let mut budget = RecallBudget::default();
-    let min_separation = config.loops.min_separation_nodes;
-    let mut recall_pairs = 0;
-    let (mut recall_nodes, mut recalled_nodes) = (0, 0);
-    let mut missed_revisits = Vec::new();
-    let mut recall_by_overlap = overlap_bins(eval.recall_min_overlap);
-    let closed: HashSet<usize> = true_positive_pairs.iter().map(|&(_, k)| k).collect();
-    for k in min_separation..nodes.len() {
-        let mut revisit = false;
-        for j in 0..=k - min_separation {
-            let Some(o) = overlap(j, k).filter(|&o| o >= eval.recall_min_overlap) else {
-                continue;
-            };
-            revisit = true;
-            let pair_outcomes = outcomes.get(&(j, k)).map_or(&[][..], Vec::as_slice);
-            let fate = PairFate::of(pair_outcomes);
-            let recalled = usize::from(fate == PairFate::Recalled);
-            recall_pairs += 1;
-            budget.add(fate);
-            // Overlaps are at most 1: past every bin's end is the last's.
-            let bin = recall_by_overlap
-                .iter()
-                .position(|b| o < b.max_overlap)
-                .unwrap_or(recall_by_overlap.len().saturating_sub(1));
-            if let Some(bin) = recall_by_overlap.get_mut(bin) {
-                bin.pairs += 1;
-                bin.recalled += recalled;
-            }
-        }
-        if revisit {
-            recall_nodes += 1;
-            if closed.contains(&k) {
-                recalled_nodes += 1;
-            } else {
-                missed_revisits.push(k as u64);
-            }
-        }
-    }
+    let truth = PairTruth::new(nodes, node_data, eval.overlap_distance_m);
+    let verdicts = judge_loops(loops, &truth, eval);
+    let recall = recall(loops, &truth, &verdicts, config);
     // No accepted loop: no false positive, precision 1 by convention (the
     // counts in `loop_evaluation` show that nothing was accepted).
+    let (tp, fp) = (verdicts.true_positives, verdicts.false_positives);
     report.loop_precision = Some(if tp + fp > 0 {
         tp as f64 / (tp + fp) as f64
     } else {
         1.0
     });
-    let recalled_pairs = budget.recalled;
-    report.loop_recall = (recall_pairs > 0).then(|| recalled_pairs as f64 / recall_pairs as f64);
-    budget.gate_ceiling = (recall_pairs > 0)
-        .then(|| (budget.recalled + budget.right_match_rejected) as f64 / recall_pairs as f64);
+    let mut budget = recall.budget;
+    let (pairs, recalled_pairs) = (recall.pairs, budget.recalled);
+    report.loop_recall = (pairs > 0).then(|| recalled_pairs as f64 / pairs as f64);
+    budget.gate_ceiling =
+        (pairs > 0).then(|| (budget.recalled + budget.right_match_rejected) as f64 / pairs as f64);
     report.loop_recall_revisits =
-        (recall_nodes > 0).then(|| recalled_nodes as f64 / recall_nodes as f64);
+        (recall.nodes > 0).then(|| recall.recalled_nodes as f64 / recall.nodes as f64);
     report.loop_evaluation = Some(LoopEvaluation {
         true_positives: tp,
         false_positives: fp,
-        recall_nodes,
-        recalled_nodes,
-        recall_pairs,
+        recall_nodes: recall.nodes,
+        recalled_nodes: recall.recalled_nodes,
+        recall_pairs: pairs,
         recalled_pairs,
-        missed_revisits,
-        candidate_true_positives: candidate_tp,
-        partial_loops: partial,
-        partial_false_positives: partial_fp,
-        partial_constrained_correct: partial_constrained,
-        recall_by_overlap,
+        missed_revisits: recall.missed_revisits,
+        candidate_true_positives: verdicts.candidate_true_positives,
+        partial_loops: verdicts.partial,
+        partial_false_positives: verdicts.partial_false_positives,
+        partial_constrained_correct: verdicts.partial_constrained_correct,
+        recall_by_overlap: recall.by_overlap,
         recall_budget: budget,
     });
     report.definitions = definitions(config);
+}
+
+/// The ground truth of node pairs: relative poses and scan overlaps.
+struct PairTruth<'a> {
+    /// Ground-truth pose per node (`None` outside the ground truth).
+    poses: Vec<Option<Se2>>,
+    node_data: &'a [NodeData],
+    /// Each node's scan as occupied cells (overlap of the module doc).
+    grids: Vec<OccupancyGrid>,
+}
+
+impl<'a> PairTruth<'a> {
+    fn new(nodes: &[NodeRecord], node_data: &'a [NodeData], cell_m: f64) -> Self {
+        Self {
+            poses: nodes.iter().map(|n| n.ground_truth).collect(),
+            node_data,
+            grids: node_data
+                .iter()
+                .map(|n| OccupancyGrid::new(&n.scan, cell_m))
+                .collect(),
+        }
+    }
+
+    /// Ground-truth `j_from_k`.
+    fn relative(&self, j: usize, k: usize) -> Option<Se2> {
+        Some(self.poses[j]?.between(&self.poses[k]?))
+    }
+
+    /// Ground-truth scan overlap of `(j, k)` (0 when the footprints are
+    /// too far apart to meet).
+    fn overlap(&self, j: usize, k: usize) -> Option<f64> {
+        let j_from_k = self.relative(j, k)?;
+        let reach = self.node_data[j].footprint_m + self.node_data[k].footprint_m;
+        if j_from_k.translation().norm() > reach {
+            return Some(0.0);
+        }
+        Some(self.grids[j].overlap(&self.node_data[k].scan, &j_from_k))
+    }
+}
+
+/// The verdicts on the examined loop candidates.
+#[derive(Default)]
+struct LoopVerdicts {
+    true_positives: usize,
+    false_positives: usize,
+    candidate_true_positives: usize,
+    partial: usize,
+    partial_false_positives: usize,
+    partial_constrained_correct: usize,
+    /// The pairs `(j, k)` joined by an accepted true-positive loop.
+    true_positive_pairs: HashSet<(usize, usize)>,
+}
+
+/// Fills each loop record's ground-truth fields and judges it against the
+/// true-positive tolerances (module doc).
+fn judge_loops(
+    loops: &mut [LoopRecord],
+    truth: &PairTruth,
+    eval: &EvaluationConfig,
+) -> LoopVerdicts {
+    let mut v = LoopVerdicts::default();
+    let within = |translation_m: f64, error: &Se2| {
+        translation_m <= eval.true_positive_translation_m
+            && error.theta().abs().to_degrees() <= eval.true_positive_rotation_deg
+    };
+    for record in loops.iter_mut() {
+        let (j, k) = (record.from as usize, record.to as usize);
+        record.ground_truth = truth.relative(j, k);
+        record.gt_overlap = truth.overlap(j, k);
+        let (Some(gt), Some(matched)) = (record.ground_truth, record.measurement) else {
+            continue;
+        };
+        let error = gt.between(&matched);
+        record.gt_error_m = Some(error.translation().norm());
+        record.gt_error_deg = Some(error.theta().abs().to_degrees());
+        let is_tp = within(error.translation().norm(), &error);
+        record.true_positive = Some(is_tp);
+        v.candidate_true_positives += usize::from(is_tp);
+        if !record.accepted {
+            continue;
+        }
+        if is_tp {
+            v.true_positives += 1;
+            v.true_positive_pairs.insert((j, k));
+        } else {
+            v.false_positives += 1;
+        }
+        if let Some([ux, uy]) = record.unconstrained_direction {
+            v.partial += 1;
+            v.partial_false_positives += usize::from(!is_tp);
+            // The error across the unconstrained direction, in `from`'s
+            // frame like the direction.
+            let across = (matched.translation() - gt.translation())
+                .dot(&nalgebra::Vector2::new(-uy, ux))
+                .abs();
+            v.partial_constrained_correct += usize::from(within(across, &error));
+        }
+    }
+    v
+}
+
+/// The recall figures over the recall pairs (module doc).
+struct Recall {
+    pairs: usize,
+    nodes: usize,
+    recalled_nodes: usize,
+    missed_revisits: Vec<u64>,
+    by_overlap: Vec<RecallBin>,
+    budget: RecallBudget,
+}
+
+/// Every recall pair's fate, from the judged `loops` (after
+/// [`judge_loops`]), and the revisits.
+fn recall(
+    loops: &[LoopRecord],
+    truth: &PairTruth,
+    verdicts: &LoopVerdicts,
+    config: &SlamConfig,
+) -> Recall {
+    let eval = &config.evaluation;
+    let mut outcomes: HashMap<(usize, usize), Vec<MatchOutcome>> = HashMap::new();
+    for record in loops {
+        outcomes
+            .entry((record.from as usize, record.to as usize))
+            .or_default()
+            .push(MatchOutcome::of(record));
+    }
+    let mut r = Recall {
+        pairs: 0,
+        nodes: 0,
+        recalled_nodes: 0,
+        missed_revisits: Vec::new(),
+        by_overlap: overlap_bins(eval.recall_min_overlap),
+        budget: RecallBudget::default(),
+    };
+    let min_separation = config.loops.min_separation_nodes;
+    let closed: HashSet<usize> = verdicts
+        .true_positive_pairs
+        .iter()
+        .map(|&(_, k)| k)
+        .collect();
+    for k in min_separation..truth.poses.len() {
+        let mut revisit = false;
+        for j in 0..=k - min_separation {
+            let Some(o) = truth
+                .overlap(j, k)
+                .filter(|&o| o >= eval.recall_min_overlap)
+            else {
+                continue;
+            };
+            revisit = true;
+            let pair_outcomes = outcomes.get(&(j, k)).map_or(&[][..], Vec::as_slice);
+            let fate = PairFate::of(pair_outcomes);
+            r.pairs += 1;
+            r.budget.add(fate);
+            // Overlaps are at most 1: past every bin's end is the last's.
+            let bins = &mut r.by_overlap;
+            let bin = bins
+                .iter()
+                .position(|b| o < b.max_overlap)
+                .unwrap_or(bins.len().saturating_sub(1));
+            if let Some(bin) = bins.get_mut(bin) {
+                bin.pairs += 1;
+                bin.recalled += usize::from(fate == PairFate::Recalled);
+            }
+        }
+        if revisit {
+            r.nodes += 1;
+            if closed.contains(&k) {
+                r.recalled_nodes += 1;
+            } else {
+                r.missed_revisits.push(k as u64);
+            }
+        }
+    }
+    r
 }
 
 /// How one examined candidate of a node pair ended.
@@ -429,7 +512,7 @@ fn definitions(config: &SlamConfig) -> BTreeMap<String, String> {
         ("true_positive", format!("an accepted loop whose edge measurement is within {} m and {} deg of the ground-truth relative pose", e.true_positive_translation_m, e.true_positive_rotation_deg)),
         ("loop_precision", "true positives / accepted loops (1 when no loop is accepted: no accepted loop is wrong; `loop_evaluation` then shows 0 true and 0 false positives)".to_string()),
         ("gt_overlap", format!("fraction of the points of S_k, placed in node j's frame with the ground-truth relative pose, that fall in a {0} m cell holding a point of S_j or next to one", e.overlap_distance_m)),
-        ("recall_pair", format!("a node pair (j, k) with k - j >= {} and ground-truth scan overlap >= {} (below that overlap a correctly registered pair cannot reach the quality gate's mean intensity {})", config.loops.min_separation_nodes, e.recall_min_overlap, config.loops.min_mean_intensity)),
+        ("recall_pair", format!("a node pair (j, k) with k - j >= {} and ground-truth scan overlap >= {} (below that overlap a correctly registered pair cannot reach the quality gate's mean intensity {})", config.loops.min_separation_nodes, e.recall_min_overlap, config.loops.gate.min_mean_intensity)),
         ("loop_recall", format!("recall pairs joined by an accepted true-positive loop, over all recall pairs (while the mission runs each node is matched against at most {} older ones; with loops.densify the overlapping pairs left are matched after it)", config.loops.max_candidates_per_node)),
         ("partial_loop", format!("an accepted densified loop constrained across one horizontal direction and in heading only (loops.densify_partial); it is true or false by the whole-pose verdict like every loop, and `partial_constrained_correct` counts those whose error across that direction is within {} m and whose heading error is within {} deg", e.true_positive_translation_m, e.true_positive_rotation_deg)),
         ("loop_recall_revisits", "revisit nodes (the newer node of at least one recall pair) that are the newer node of an accepted true-positive loop, over all revisit nodes: how many returns to a known place were recognised".to_string()),

@@ -21,7 +21,7 @@
 //!    relative uncertainty small), and reported as `deferred` if it never
 //!    qualifies. Only when none of a node's candidates is certain enough
 //!    (a first contact with a place seen long ago) are the best
-//!    `wide_searches_per_node` of them searched over `max_window` at once.
+//!    `WIDE_SEARCHES_PER_NODE` of them searched over `gate.max_window` at once.
 //! 3. **Matching and checks** ([`checks`]): `S_k` vs `I_j`, quality,
 //!    covariance, window edge, and the symmetric match `S_j` vs `I_k`. A
 //!    candidate predicted to overlap almost entirely whose match lands on
@@ -50,7 +50,7 @@
 //!    so treating them as independent would count the same error many
 //!    times: a densified loop's covariance is multiplied by the design
 //!    effect of equicorrelated measurements, `1 + ρ·(m_j + m_k − 2)`
-//!    (`densify_correlation` = ρ, `m_x` the accepted loops at node `x`,
+//!    (`DENSIFY_CORRELATION` = ρ, `m_x` the accepted loops at node `x`,
 //!    or within `cover_spacing_m` of travel of it). Densification, too,
 //!    skips covered pairs: it matches in rounds the pairs that neither an
 //!    accepted loop nor an earlier pick of the round covers
@@ -68,7 +68,7 @@
 //! same result on any number of threads (timings: EXPERIMENTS.md § Speed
 //! notes).
 
-pub use echofield_frontend::loops::{LoopConfig, checks, config, consistency, cover};
+use echofield_frontend::loops::{LoopConfig, checks, consistency, cover};
 
 use super::SlamError;
 use super::estimate::{Estimate, make_edge};
@@ -76,6 +76,10 @@ use checks::{Candidate, examine};
 use consistency::{Clique, ConsistencyGraph, DeadReckoningChain, LoopMeasurement};
 use cover::LoopCover;
 use echofield_frontend::image::ImageResidency;
+use echofield_frontend::loops::config::{
+    CONSISTENCY_MAX_CHI2, DENSIFY_CORRELATION, DENSIFY_MIN_PREDICTED_OVERLAP,
+    WIDE_SEARCHES_PER_NODE, densify_max_window,
+};
 use echofield_frontend::loops::{LoopRecord, RejectReason};
 use echofield_frontend::matcher::{MatcherConfig, SearchWindow};
 use echofield_frontend::nodes::{NodeData, predicted_overlap};
@@ -239,7 +243,7 @@ impl<'a> LoopCloser<'a> {
             |list: &Vec<Candidate>, j: usize| list.iter().any(|c| self.cover.near(c.from, j, s));
         for (j, overlap) in overlaps {
             let c = self.candidate(j, k, overlap, path[j].as_ref(), poses);
-            if !c.too_uncertain(&self.config.max_window) {
+            if !c.too_uncertain(&self.config.gate.max_window) {
                 if ready.len() < max && !taken(&ready, j) {
                     ready.push(c);
                 }
@@ -252,7 +256,7 @@ impl<'a> LoopCloser<'a> {
         // are searched over the largest window now; the checks and the
         // consistency test decide.
         if ready.is_empty() {
-            let wide = self.config.wide_searches_per_node.min(waiting.len());
+            let wide = WIDE_SEARCHES_PER_NODE.min(waiting.len());
             for mut c in waiting.drain(..wide) {
                 c.wide = true;
                 ready.push(c);
@@ -267,15 +271,15 @@ impl<'a> LoopCloser<'a> {
     /// every pair at least `min_separation_nodes` apart that was never
     /// examined or that `retried_pairs` lists, whose
     /// predicted overlap at the current estimate is at
-    /// least `densify_min_predicted_overlap` and whose search window
+    /// least `DENSIFY_MIN_PREDICTED_OVERLAP` and whose search window
     /// (`n_sigma` of the relative uncertainty) fits within
-    /// `densify_max_window`, is matched by
+    /// `densify_max_window()`, is matched by
     /// climbing from the estimate to the nearest maximum of eq. (6), within
     /// `min_window` ([`match_scan_local`](echofield_frontend::matcher::match_scan_local)),
     /// the symmetric match likewise. A loop that passes the checks of
     /// [`checks`] is accepted when it agrees with the estimate (squared
     /// Mahalanobis distance under its covariance plus the prior's at most
-    /// `consistency_max_chi2`), else rejected as `inconsistent`; the final
+    /// `CONSISTENCY_MAX_CHI2`), else rejected as `inconsistent`; the final
     /// solve's robust kernel still judges it. Pairs covered by accepted
     /// loops are skipped, and the rest matched in rounds of pairs that do
     /// not cover each other ([`cover`]). Returns whether loops were
@@ -314,14 +318,13 @@ impl<'a> LoopCloser<'a> {
     /// (`k`, then `j`), with their priors and windows (`min_window`); pairs
     /// that accepted loops cover ([`cover`]) are left out.
     fn densification_pairs(&self, nodes: &[NodeData], estimate: &Estimate) -> Vec<Candidate> {
-        let (min, poses) = (&self.config.min_window, estimate.poses());
+        let (min, poses) = (&self.config.gate.min_window, estimate.poses());
         let mut candidates = Vec::new();
         for k in self.config.min_separation_nodes..nodes.len() {
             if !nodes[k].matchable() {
                 continue;
             }
-            let mut pairs =
-                self.overlapping(k, nodes, poses, self.config.densify_min_predicted_overlap);
+            let mut pairs = self.overlapping(k, nodes, poses, DENSIFY_MIN_PREDICTED_OVERLAP);
             if self.cover.enabled() {
                 keep_best_overlaps(
                     &mut pairs,
@@ -334,7 +337,7 @@ impl<'a> LoopCloser<'a> {
             let path = estimate.links().relative_from(k, poses);
             for (j, overlap) in pairs {
                 let mut c = self.candidate(j, k, overlap, path[j].as_ref(), poses);
-                if c.too_uncertain(&self.config.densify_max_window) {
+                if c.too_uncertain(&densify_max_window()) {
                     continue;
                 }
                 c.raw_window = *min;
@@ -388,11 +391,11 @@ impl<'a> LoopCloser<'a> {
             if record.rejected_by.is_none()
                 && let (Some(z), Some(cov)) = (record.measurement, record.covariance)
             {
-                let covariance = with_floor(&cov, &self.config.min_sigma);
+                let covariance = with_floor(&cov, &self.config.gate.min_sigma);
                 let e = c.prior.inverse().compose(&z);
                 let chi2 =
                     mahalanobis2(&e, &(covariance + c.prior_covariance)).unwrap_or(f64::INFINITY);
-                if chi2 <= self.config.consistency_max_chi2 {
+                if chi2 <= CONSISTENCY_MAX_CHI2 {
                     self.cover.insert(c.from, c.to);
                     self.dense.push(LoopMeasurement {
                         id,
@@ -490,7 +493,7 @@ impl<'a> LoopCloser<'a> {
             .copied()
             .min_by(|a, b| translation_trace(a).total_cmp(&translation_trace(b)))
             .unwrap_or_else(|| Matrix3::from_diagonal(&nalgebra::Vector3::new(1e6, 1e6, 10.0)));
-        let n = self.config.n_sigma;
+        let n = self.config.gate.n_sigma;
         let sd = |axis: usize| {
             let var = covs
                 .iter()
@@ -523,7 +526,7 @@ impl<'a> LoopCloser<'a> {
         nodes: &[NodeData],
         estimate: &mut Estimate,
     ) -> Result<bool, SlamError> {
-        let deferred = |c: &Candidate| c.too_uncertain(&self.config.max_window) && !c.wide;
+        let deferred = |c: &Candidate| c.too_uncertain(&self.config.gate.max_window) && !c.wide;
         let searched: Vec<&Candidate> = candidates.iter().filter(|c| !deferred(c)).collect();
         let mut examined = self.examine_all(&searched, k, nodes)?.into_iter();
         let mut passed = Vec::new();
@@ -598,7 +601,7 @@ impl<'a> LoopCloser<'a> {
             }
             let path = &paths.iter().find(|(t, _)| *t == to).expect("just added").1;
             let candidate = self.candidate(j, to, overlap, path[j].as_ref(), estimate.poses());
-            if candidate.too_uncertain(&self.config.max_window) {
+            if candidate.too_uncertain(&self.config.gate.max_window) {
                 self.deferred.push(id);
                 continue;
             }
@@ -629,7 +632,7 @@ impl<'a> LoopCloser<'a> {
             let (Some(z), Some(cov)) = (record.measurement, record.covariance) else {
                 continue;
             };
-            let covariance = with_floor(&cov, &self.config.min_sigma);
+            let covariance = with_floor(&cov, &self.config.gate.min_sigma);
             let measurement = LoopMeasurement {
                 id,
                 from: record.from as usize,
@@ -638,7 +641,7 @@ impl<'a> LoopCloser<'a> {
                 covariance,
             };
             self.consistency
-                .add(measurement, &self.chain, self.config.consistency_max_chi2);
+                .add(measurement, &self.chain, CONSISTENCY_MAX_CHI2);
         }
         let clique = self.consistency.max_clique();
         self.inexact_cliques += usize::from(!clique.exact);
@@ -667,7 +670,7 @@ impl<'a> LoopCloser<'a> {
 
     /// The loop edges of the accepted set, with their covariances: the
     /// clique's loops as matched, the densified ones inflated by their
-    /// design effect (`LoopConfig::densify_correlation`).
+    /// design effect (`loops::config::DENSIFY_CORRELATION`).
     fn accepted_edges(&self) -> Vec<(usize, echofield_graph::Edge, Matrix3<f64>)> {
         let primary: Vec<&LoopMeasurement> = self
             .accepted
@@ -680,7 +683,7 @@ impl<'a> LoopCloser<'a> {
             self.chain.distances(),
             primary.iter().copied().chain(&self.dense),
         );
-        let rho = self.config.densify_correlation;
+        let rho = DENSIFY_CORRELATION;
         let inflations = self.dense.iter().map(|m| places.design_effect(m, rho));
         primary
             .into_iter()
@@ -967,7 +970,7 @@ mod tests {
         let chain = closer.chain.clone();
         closer
             .consistency
-            .add(measurement(7, 3, 25), &chain, config.consistency_max_chi2);
+            .add(measurement(7, 3, 25), &chain, CONSISTENCY_MAX_CHI2);
         closer.accepted = Clique {
             ids: vec![7],
             exact: true,

@@ -72,10 +72,8 @@ impl SlamOutput {
 /// Rate of [`SlamOutput::dead_reckoning`], Hz.
 pub const DEAD_RECKONING_RATE_HZ: f64 = 10.0;
 
-pub use super::node_record::NodeRecord;
-pub use echofield_frontend::loops::records::{
-    LoopRecord, RejectReason, ReverseCheck, SequentialRecord,
-};
+use super::node_record::NodeRecord;
+use echofield_frontend::loops::records::{LoopRecord, RejectReason, SequentialRecord};
 
 /// Wall time per stage, seconds.
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
@@ -345,7 +343,7 @@ pub struct Report {
     pub loop_candidates: usize,
     /// Candidates actually matched.
     pub loop_matches: usize,
-    /// Of which searched over `loops.max_window` as first contacts.
+    /// Of which searched over `loops.gate.max_window` as first contacts.
     pub loop_wide_searches: usize,
     /// Scan matches run in all (sequential, loop, reverse).
     pub matches_run: usize,

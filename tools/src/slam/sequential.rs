@@ -15,31 +15,37 @@
 //!   inflating the odometry covariance made the marina ATE worse, so none is
 //!   applied (measured: EXPERIMENTS.md § Odometry covariance).
 //! - **Sequential match** `S_k` vs `I_{k-1}` (eq. 5-6): the prior is the
-//!   odometry motion, the window `n_sigma` standard deviations of it
-//!   (clamped to `[min_window, max_window]`). The match becomes an edge of
-//!   kind `Sequential` when its mean intensity reaches
-//!   `min_mean_intensity`, its covariance is positive definite, and it
-//!   agrees with the odometry: the squared Mahalanobis distance of
-//!   `prior⁻¹ ⊕ match` under the sum of both covariances is at most
-//!   `max_prior_chi2`. Its covariance is the score surface's plus the
-//!   `min_sigma` floor.
+//!   odometry motion, the window `gate.n_sigma` standard deviations of it
+//!   (clamped to `[gate.min_window, gate.max_window]`, [`MatchGate`]). The
+//!   match becomes an edge of kind `Sequential` when its mean intensity
+//!   reaches `gate.min_mean_intensity`, its covariance is positive
+//!   definite, and it agrees with the odometry: the squared Mahalanobis
+//!   distance of `prior⁻¹ ⊕ match` under the sum of both covariances is at
+//!   most [`SEQUENTIAL_MAX_PRIOR_CHI2`]. Its covariance is the score
+//!   surface's plus the `gate.min_sigma` floor.
+//!
+//! [`MatchGate`]: echofield_frontend::matcher::MatchGate
 //!
 //! Sequential matches depend on dead reckoning only, not on the graph;
 //! each is computed when its newer node is built.
 
 use super::SlamError;
-use super::config::{SequentialConfig, Window};
+use super::config::{SEQUENTIAL_MAX_PRIOR_CHI2, SequentialConfig};
+use echofield_frontend::FrontendError;
 use echofield_frontend::dead_reckoning::Navigation;
+use echofield_frontend::image::AcousticImage;
 use echofield_frontend::loops::{RejectReason, SequentialRecord};
-use echofield_frontend::matcher::symmetric::{Fusion, Tolerance, reverse_match};
-use echofield_frontend::matcher::{MatchOutcome, MatcherConfig, Search, SearchWindow, match_scan};
+use echofield_frontend::matcher::symmetric::{Fusion, reverse_match};
+use echofield_frontend::matcher::{
+    MatchOutcome, MatchResult, MatcherConfig, Search, SearchWindow, match_scan,
+};
 use echofield_frontend::nodes::NodeData;
 use echofield_frontend::uncertainty::{information, mahalanobis2, symmetric, with_floor};
 use echofield_graph::Se2;
-use nalgebra::Matrix3;
+use nalgebra::{Matrix3, Point2};
 
 /// Floor of the odometry edges' standard deviations: 1 mm, 1 mm, 0.01°.
-pub const ODOMETRY_MIN_SIGMA: Window = Window::new(1e-3, 1e-3, 1.745_329_251_994_33e-4);
+pub const ODOMETRY_MIN_SIGMA: SearchWindow = SearchWindow::new(1e-3, 1e-3, 1.745_329_251_994_33e-4);
 
 /// The odometry motion `(k-1)_from_k` and its floored covariance.
 pub fn odometry(
@@ -79,14 +85,12 @@ fn match_one(
     matcher: &MatcherConfig,
 ) -> Result<SequentialRecord, SlamError> {
     let (prior, prior_cov) = odometry(navigation, prev, node)?;
-    let window =
-        SearchWindow::from_covariance(&prior_cov, seq.n_sigma, &seq.min_window, &seq.max_window);
     let mut record = SequentialRecord {
         from: (k - 1) as u64,
         to: k as u64,
         prior,
         prior_covariance: prior_cov,
-        window,
+        window: seq.gate.window(&prior_cov),
         matched: None,
         measurement: None,
         quality: None,
@@ -110,8 +114,14 @@ fn match_one(
         .image
         .image()
         .map_err(|e| SlamError::frontend(stage(), e))?;
-    let outcome = match_scan(&node.scan.points, &prev_image, &prior, &window, matcher)
-        .map_err(|e| SlamError::frontend(stage(), e))?;
+    let outcome = match_scan(
+        &node.scan.points,
+        &prev_image,
+        &prior,
+        &record.window,
+        matcher,
+    )
+    .map_err(|e| SlamError::frontend(stage(), e))?;
     let m = match outcome {
         MatchOutcome::Match(m) => m,
         MatchOutcome::NoMatch { reason } => {
@@ -120,58 +130,78 @@ fn match_one(
             return Ok(record);
         }
     };
-    record.matched = Some(m.image_from_scan);
-    record.quality = Some(m.quality.clone());
-    record.covariance = Some(m.covariance);
-    let cov = with_floor(&m.covariance, &seq.min_sigma);
-    // Near the identity the vector form of prior⁻¹ ⊕ match is the
-    // difference of the two, with covariance about the sum of both.
-    let difference = prior.inverse().compose(&m.image_from_scan);
-    record.prior_chi2 = mahalanobis2(&difference, &symmetric(prior_cov + cov));
-    record.rejected_by = if m.quality.mean_intensity < seq.min_mean_intensity {
-        Some(RejectReason::Quality)
-    } else if information(&cov).is_none() {
-        Some(RejectReason::Covariance)
-    } else if record.prior_chi2.is_none_or(|c| c > seq.max_prior_chi2) {
-        Some(RejectReason::Prior)
-    } else {
-        None
-    };
-    record.measurement = Some(m.image_from_scan);
+    gate_forward(&mut record, &m, seq);
     if record.rejected_by.is_none() && seq.symmetric && prev.has_scan() {
-        let tolerance = Tolerance {
-            window: seq.reverse_window,
-            max_translation_m: seq.reverse_max_translation_m,
-            max_rotation_rad: seq.reverse_max_rotation_rad,
-        };
         let image = node
             .image
             .image()
             .map_err(|e| SlamError::frontend(stage(), e))?;
-        let (reverse, measurement) = reverse_match(
-            &m,
-            &prev.scan.points,
-            &image,
-            &tolerance,
-            matcher,
-            Search::Global,
-            Fusion::InformationWeighted,
-        )
-        .map_err(|e| {
+        check_reverse(&mut record, &m, &prev.scan.points, &image, seq, matcher).map_err(|e| {
             SlamError::frontend(format!("reverse sequential match {k} -> {}", k - 1), e)
         })?;
-        record.reverse = Some(reverse);
-        match measurement {
-            Some(z) => record.measurement = Some(z),
-            None => record.rejected_by = Some(RejectReason::ReverseMismatch),
-        }
     }
     record.accepted = record.rejected_by.is_none();
     Ok(record)
 }
 
+/// Records the forward match `m` and judges it by the gate: its mean
+/// intensity, its (floored) covariance, and its agreement with the
+/// odometry prior (χ² at most [`SEQUENTIAL_MAX_PRIOR_CHI2`]).
+fn gate_forward(record: &mut SequentialRecord, m: &MatchResult, seq: &SequentialConfig) {
+    record.matched = Some(m.image_from_scan);
+    record.quality = Some(m.quality.clone());
+    record.covariance = Some(m.covariance);
+    let cov = with_floor(&m.covariance, &seq.gate.min_sigma);
+    // Near the identity the vector form of prior⁻¹ ⊕ match is the
+    // difference of the two, with covariance about the sum of both.
+    let difference = record.prior.inverse().compose(&m.image_from_scan);
+    record.prior_chi2 = mahalanobis2(&difference, &symmetric(record.prior_covariance + cov));
+    record.rejected_by = if m.quality.mean_intensity < seq.gate.min_mean_intensity {
+        Some(RejectReason::Quality)
+    } else if information(&cov).is_none() {
+        Some(RejectReason::Covariance)
+    } else if record
+        .prior_chi2
+        .is_none_or(|c| c > SEQUENTIAL_MAX_PRIOR_CHI2)
+    {
+        Some(RejectReason::Prior)
+    } else {
+        None
+    };
+    record.measurement = Some(m.image_from_scan);
+}
+
+/// The symmetric check of an accepted forward match `m`: `S_{k-1}`
+/// (`prev_points`) against `I_k` (`image`) around the inverse of `m`.
+/// Agreement within the gate's tolerance makes the record's measurement
+/// the fusion of both; disagreement rejects it (`reverse_mismatch`).
+fn check_reverse(
+    record: &mut SequentialRecord,
+    m: &MatchResult,
+    prev_points: &[Point2<f64>],
+    image: &AcousticImage,
+    seq: &SequentialConfig,
+    matcher: &MatcherConfig,
+) -> Result<(), FrontendError> {
+    let (reverse, measurement) = reverse_match(
+        m,
+        prev_points,
+        image,
+        &seq.gate.reverse_tolerance(),
+        matcher,
+        Search::Global,
+        Fusion::InformationWeighted,
+    )?;
+    record.reverse = Some(reverse);
+    match measurement {
+        Some(z) => record.measurement = Some(z),
+        None => record.rejected_by = Some(RejectReason::ReverseMismatch),
+    }
+    Ok(())
+}
+
 /// The covariance of an accepted sequential edge.
 pub fn edge_covariance(record: &SequentialRecord, seq: &SequentialConfig) -> Option<Matrix3<f64>> {
     let cov = record.covariance?;
-    Some(with_floor(&cov, &seq.min_sigma))
+    Some(with_floor(&cov, &seq.gate.min_sigma))
 }

@@ -5,10 +5,11 @@
 use super::SlamEngine;
 use crate::slam::estimate::Estimate;
 use crate::slam::loops::LoopCloser;
-use crate::slam::result::{RejectReason, SlamOutput};
+use crate::slam::result::SlamOutput;
 use crate::slam::{SlamConfig, SlamError, input_checks};
 use echofield_backend::{RobustSolveSummary, edge_error};
 use echofield_frontend::FrontendError;
+use echofield_frontend::loops::RejectReason;
 use echofield_frontend::sensors::GroundTruthPose;
 use echofield_frontend::warnings::{Warning, WarningKind, Warnings};
 use echofield_graph::{EdgeKind, PoseGraph};

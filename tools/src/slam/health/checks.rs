@@ -22,7 +22,7 @@
 //!   three standard errors from zero: a head half a metre from where the
 //!   mounting puts it moves a match across a 30° turn by 0.26 m, more than
 //!   twice the smallest standard deviation a sequential edge is given
-//!   (`sequential.min_sigma`, 0.1 m).
+//!   (`sequential.gate.min_sigma`, 0.1 m).
 //! - **Sequential acceptance** at least [`MIN_SEQUENTIAL_SHARE`], and
 //!   **loop acceptance** at least [`MIN_LOOP_SHARE`] of the loop
 //!   candidates matched (with at least [`MIN_LOOP_MATCHES`] of them):

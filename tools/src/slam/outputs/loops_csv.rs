@@ -29,8 +29,8 @@
 //! | `gt_correct` | `true` when the match is within the true-positive tolerances |
 //! | `verdict` | `tp` accepted and correct, `fp` accepted and wrong, `fn` rejected but correct, `tn` rejected and wrong |
 
-use crate::slam::result::LoopRecord;
 use anyhow::{Context, Result, bail};
+use echofield_frontend::loops::LoopRecord;
 use std::io::Write;
 use std::path::Path;
 
@@ -212,7 +212,7 @@ impl LoopRow {
 }
 
 /// The snake_case name of a reject reason (as in `report.json`).
-pub fn reason_name(reason: crate::slam::result::RejectReason) -> String {
+pub fn reason_name(reason: echofield_frontend::loops::RejectReason) -> String {
     match serde_json::to_value(reason) {
         Ok(serde_json::Value::String(s)) => s,
         _ => format!("{reason:?}"),

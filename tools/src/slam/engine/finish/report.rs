@@ -2,13 +2,15 @@
 
 use super::super::SlamEngine;
 use crate::slam::evaluation::evaluate;
+use crate::slam::node_record::NodeRecord;
 use crate::slam::result::{
-    DEAD_RECKONING_RATE_HZ, DeadReckoningReport, NodeRecord, OutliersReport, RejectReason, Report,
-    SequentialRecord, SkippedRotation, SlamOutput, SolverReport, StageTimings, TimeGap,
+    DEAD_RECKONING_RATE_HZ, DeadReckoningReport, OutliersReport, Report, SkippedRotation,
+    SlamOutput, SolverReport, StageTimings, TimeGap,
 };
 use crate::slam::{SlamError, health, input_checks, navigation_rate, odometry_scale};
 use echofield_backend::RobustSolveSummary;
 use echofield_frontend::dead_reckoning::{DeadReckoningConfig, Navigation};
+use echofield_frontend::loops::{RejectReason, SequentialRecord};
 use echofield_frontend::nodes::NodeData;
 use echofield_frontend::sensors::{
     AngleDirection, GroundTruthPose, MountingSource, SensorMounting,
@@ -320,7 +322,7 @@ fn time_gaps(navigation: &Navigation, nodes: &[NodeData], warnings: &mut Warning
     gaps
 }
 
-fn rejections(loops: &[crate::slam::result::LoopRecord]) -> BTreeMap<RejectReason, usize> {
+fn rejections(loops: &[echofield_frontend::loops::LoopRecord]) -> BTreeMap<RejectReason, usize> {
     let mut out = BTreeMap::new();
     for reason in loops.iter().filter_map(|l| l.rejected_by) {
         *out.entry(reason).or_insert(0) += 1;
