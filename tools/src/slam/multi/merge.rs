@@ -246,7 +246,7 @@ fn cross_candidates(
     config: &SlamConfig,
 ) -> Vec<Candidate> {
     let covariance = Matrix3::from_diagonal(&Vector3::from(PLACEMENT_SIGMA.map(|s| s * s)));
-    let n_sigma = config.loops.n_sigma;
+    let n_sigma = config.loops.gate.n_sigma;
     let raw_window = SearchWindow::new(
         n_sigma * PLACEMENT_SIGMA[0],
         n_sigma * PLACEMENT_SIGMA[1],
