@@ -25,19 +25,17 @@ impl SlamEngine<'_> {
     /// has a scan or an image, the navigation never started, a failed
     /// final solve.
     pub fn finish(mut self, ground_truth: &[GroundTruthPose]) -> Result<SlamOutput, SlamError> {
-        if let Some(rotation) = self.rotations.finish() {
+        if let Some(rotation) = self.ready.finish() {
             self.rotation_ranges
                 .push((rotation.beams.clone(), f64::NAN));
-            self.pending.push_back(rotation);
         }
-        self.latest_s = f64::INFINITY;
         self.process_ready()?;
         if self.rotation_ranges.is_empty() {
             let error = FrontendError::insufficient(
                 "rotation assembly",
                 format!(
                     "no complete rotation or sector sweep in {} beams (set keep_partial to keep partial ones)",
-                    self.rotations.beams()
+                    self.ready.beams()
                 ),
             );
             return Err(SlamError::frontend("rotation assembly", error));
