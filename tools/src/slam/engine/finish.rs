@@ -72,7 +72,16 @@ impl SlamEngine<'_> {
     fn close_graph(&mut self, warnings: &mut Warnings) -> Result<(), SlamError> {
         let graph = &mut self.graph;
         let t = Instant::now();
+        let rebuilt = |nodes: &[echofield_frontend::nodes::NodeData]| -> usize {
+            nodes.iter().map(|n| n.image.rebuilds()).sum()
+        };
+        let before = rebuilt(&graph.nodes);
         graph.closer.densify(&graph.nodes, &mut graph.estimate)?;
+        tracing::debug!(
+            mission_pass = before,
+            densification = rebuilt(&graph.nodes) - before,
+            "images rebuilt for matches"
+        );
         graph.closer.finish();
         graph.loops_s += t.elapsed().as_secs_f64();
         if let Some(e) = &graph.incremental_error {
