@@ -152,7 +152,7 @@ pub fn complete_results_mcap(
             w.write_point_cloud("/slam/scan", t, FRAME_WORLD, &node.optimised, &points)?;
         }
         if let Some(png) = pngs.next().and_then(Option::as_ref) {
-            w.write_compressed_image("/slam/acoustic_image", t, FRAME_VEHICLE, "png", &png)?;
+            w.write_compressed_image("/slam/acoustic_image", t, FRAME_VEHICLE, "png", png)?;
         }
     }
     Ok(w.complete()?)
