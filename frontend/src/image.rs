@@ -413,6 +413,28 @@ impl AcousticImage {
         Ok(image)
     }
 
+    /// The search raster of [`Self::build`] alone (its [`Self::grid`],
+    /// cell for cell), without the pyramid, the pose-fit raster and the
+    /// polar samples: for a look at the image (outputs), at a fraction of
+    /// the cost. Preconditions and errors as [`Self::build`].
+    pub fn build_grid(
+        beams: &[SonarBeam],
+        reference_from_beams: &[Se2],
+        config: &ImageConfig,
+    ) -> Result<Grid, FrontendError> {
+        config.validate()?;
+        validate_beams(beams, reference_from_beams)?;
+        // The same profiles as `build` (coded, then decoded), so that the
+        // cells are the same.
+        let profiles = normalise::normalise_beams_coded(beams, config).decoded();
+        let cell_m = config.cell_size_for(beams);
+        let mut grid = raster::rasterise(beams, reference_from_beams, &profiles, cell_m, config)?;
+        if config.smoothing_sigma_m > 0.0 {
+            grid.smooth_gaussian(config.smoothing_sigma_m / cell_m);
+        }
+        Ok(grid)
+    }
+
     /// Wraps an existing grid (for tests and for images made elsewhere).
     pub fn from_grid(grid: Grid, pyramid_levels: usize) -> Self {
         let pyramid = Pyramid::build(&grid, pyramid_levels);

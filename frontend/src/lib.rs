@@ -18,6 +18,7 @@ pub mod motion;
 pub mod mounting;
 pub mod nodes;
 pub mod off_axis;
+pub mod replay;
 pub mod rotation;
 pub mod scan;
 pub mod screening;

@@ -156,6 +156,23 @@ impl StoredImage {
         AcousticImage::build(&source.beams, &source.frames, &source.config).map(Arc::new)
     }
 
+    /// The image's search raster ([`AcousticImage::grid`]) for one look
+    /// (an output): copied from the resident image, or built alone from
+    /// the inputs ([`AcousticImage::build_grid`], the same cells) and not
+    /// kept. Errors as [`Self::image`]. Does not count as a read.
+    pub fn grid_once(&self) -> Result<Grid, FrontendError> {
+        if let Some(image) = self.lock().as_ref() {
+            return Ok(image.grid().clone());
+        }
+        let Some(source) = &self.source else {
+            return Err(FrontendError::insufficient(
+                "stored image",
+                "released image without its beams",
+            ));
+        };
+        AcousticImage::build_grid(&source.beams, &source.frames, &source.config)
+    }
+
     /// Drops the resident image (readers holding it keep their copy until
     /// they finish). Returns whether an image was dropped: `false` when
     /// none was resident, and for images without their inputs, which stay.
@@ -261,8 +278,11 @@ mod tests {
             "{} of {resident_bytes} bytes",
             stored.heap_bytes()
         );
-        // A look for an output builds it without keeping it.
+        // A look for an output builds it without keeping it; the raster
+        // alone is the same too.
         assert_eq!(stored.image_once().unwrap().grid(), image.grid());
+        assert_eq!(&stored.grid_once().unwrap(), image.grid());
+        assert!(!stored.is_resident());
         assert!(!stored.is_resident() && stored.resident_bytes() == 0);
         let back = stored.image().unwrap();
         assert!(stored.is_resident());

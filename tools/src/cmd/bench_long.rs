@@ -28,10 +28,12 @@ same quays with more rotations. The runs sparsify loops with
 Each mission is written to OUTPUT as
 marina-<speed>.mcap and run by `echofield run`'s pipeline in a child
 process (outputs in OUTPUT/run-<speed>), whose peak resident memory
-(VmHWM, Linux) and wall time, reading and writing included, are reported
+(VmHWM, Linux), wall time and CPU time (user + system, all threads,
+Linux; unlike the wall time, hardly changed by other programs on a
+loaded machine), reading and writing included, are reported
 with the run's loop candidates, accepted loops, node images built again
 after the memory budget released them, and ATE (dead reckoning's in
-brackets). The last line compares the largest mission's time with the
+brackets). The last line compares the largest mission's times with the
 smallest's.";
 
 #[derive(Debug, clap::Args)]
@@ -67,6 +69,7 @@ struct Row {
     accepted: usize,
     rebuilt: usize,
     time_s: f64,
+    cpu_s: Option<f64>,
     peak_mb: Option<f64>,
     ate_m: Option<f64>,
     ate_dr_m: Option<f64>,
@@ -88,9 +91,9 @@ pub fn run(args: Args) -> Result<()> {
         .with_context(|| format!("cannot create folder {}", args.output.display()))?;
     let mut rows = Vec::new();
     println!(
-        "| cruise speed (m/s) | rotations | loop candidates | loops accepted | images rebuilt | time (s) | peak memory (MB) | ATE (DR) (m) |"
+        "| cruise speed (m/s) | rotations | loop candidates | loops accepted | images rebuilt | time (s) | CPU time (s) | peak memory (MB) | ATE (DR) (m) |"
     );
-    println!("|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|");
     for &speed in &args.speeds {
         let mission = args.output.join(format!("marina-{speed}.mcap"));
         simulate(speed, args.seed, &mission)?;
@@ -99,13 +102,14 @@ pub fn run(args: Args) -> Result<()> {
             v.map_or_else(|| "n/a".to_string(), |v| format!("{v:.digits$}"))
         };
         println!(
-            "| {} | {} | {} | {} | {} | {:.1} | {} | {} ({}) |",
+            "| {} | {} | {} | {} | {} | {:.1} | {} | {} | {} ({}) |",
             row.speed_mps,
             row.rotations,
             row.candidates,
             row.accepted,
             row.rebuilt,
             row.time_s,
+            show(row.cpu_s, 1),
             show(row.peak_mb, 0),
             show(row.ate_m, 3),
             show(row.ate_dr_m, 2)
@@ -115,8 +119,12 @@ pub fn run(args: Args) -> Result<()> {
     if let (Some(first), Some(last)) = (rows.first(), rows.last())
         && rows.len() > 1
     {
+        let cpu = match (last.cpu_s, first.cpu_s) {
+            (Some(l), Some(f)) => format!(" ({:.1} times the CPU time)", l / f.max(1e-9)),
+            _ => String::new(),
+        };
         println!(
-            "{} rotations took {:.1} times as long as {}",
+            "{} rotations took {:.1} times as long as {}{cpu}",
             last.rotations,
             last.time_s / first.time_s.max(1e-9),
             first.rotations
@@ -163,10 +171,14 @@ fn measure(speed_mps: f64, mission: &Path, args: &Args) -> Result<Row> {
             String::from_utf8_lossy(&result.stderr).trim()
         );
     }
-    let peak_mb = String::from_utf8_lossy(&result.stdout)
-        .lines()
-        .find_map(|l| l.strip_prefix("peak_kb ")?.trim().parse::<f64>().ok())
-        .map(|kb| kb / 1024.0);
+    let stdout = String::from_utf8_lossy(&result.stdout);
+    let value = |key: &str| {
+        stdout
+            .lines()
+            .find_map(|l| l.strip_prefix(key)?.trim().parse::<f64>().ok())
+    };
+    let peak_mb = value("peak_kb ").map(|kb| kb / 1024.0);
+    let cpu_s = value("cpu_s ");
     let path = out.join("report.json");
     let text = std::fs::read_to_string(&path)
         .with_context(|| format!("cannot read {}", path.display()))?;
@@ -180,6 +192,7 @@ fn measure(speed_mps: f64, mission: &Path, args: &Args) -> Result<Row> {
         accepted: count("loops_accepted"),
         rebuilt: count("images_rebuilt"),
         time_s,
+        cpu_s,
         peak_mb,
         ate_m: report["ate_rmse_m"].as_f64(),
         ate_dr_m: report["ate_rmse_dead_reckoning_m"].as_f64(),
@@ -187,7 +200,8 @@ fn measure(speed_mps: f64, mission: &Path, args: &Args) -> Result<Row> {
 }
 
 /// The child: runs the pipeline on `mission`, writes the outputs to
-/// `output` and prints `peak_kb N`, its peak resident memory.
+/// `output` and prints `peak_kb N`, its peak resident memory, and
+/// `cpu_s T`, its CPU time.
 fn run_child(
     mission_path: &Path,
     output: &Path,
@@ -203,7 +217,25 @@ fn run_child(
     if let Some(kb) = peak_resident_kb() {
         println!("peak_kb {kb}");
     }
+    if let Some(cpu_s) = cpu_time_s() {
+        println!("cpu_s {cpu_s}");
+    }
     Ok(())
+}
+
+/// Clock ticks per second of `/proc/*/stat`'s times: `USER_HZ`, fixed at
+/// 100 in Linux's user-space ABI (whatever the kernel's own tick rate).
+const USER_HZ: f64 = 100.0;
+
+/// User plus system CPU time of this process (all its threads) so far, s
+/// (Linux); `None` elsewhere.
+fn cpu_time_s() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // Fields after the command name (which may hold spaces), from field 3
+    // (state): utime and stime are fields 14 and 15.
+    let fields: Vec<&str> = stat.rsplit_once(')')?.1.split_whitespace().collect();
+    let ticks = |i: usize| fields.get(i)?.parse::<f64>().ok();
+    Some((ticks(11)? + ticks(12)?) / USER_HZ)
 }
 
 /// `VmHWM` of this process in kB (Linux); `None` elsewhere.
@@ -224,6 +256,19 @@ mod tests {
         if cfg!(target_os = "linux") {
             let kb = peak_resident_kb().expect("VmHWM on Linux");
             assert!(kb > 100, "{kb} kB");
+        }
+    }
+
+    #[test]
+    fn reads_its_own_cpu_time() {
+        if cfg!(target_os = "linux") {
+            let before = cpu_time_s().expect("/proc/self/stat on Linux");
+            // Spin until the CPU clock has ticked at least twice.
+            let mut x = 0u64;
+            while cpu_time_s().unwrap() < before + 0.02 {
+                x = std::hint::black_box(x.wrapping_add(1));
+            }
+            assert!(cpu_time_s().unwrap() >= before + 0.02);
         }
     }
 }

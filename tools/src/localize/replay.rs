@@ -1,9 +1,11 @@
-//! The localised mission replayed causally, as on the vehicle: beams, DVL
-//! and attitude samples in time order (at equal stamps: DVL, attitude,
-//! then beams, as [`crate::slam::replay`]); the forward dead-reckoning
-//! filter ([`ForwardFilter`]) navigates, the [`RotationStream`] cuts the
-//! beams into rotations, and each rotation, once the navigation covers
-//! it, becomes a node built exactly as the SLAM frontend builds one
+//! The localised mission replayed causally, as on the vehicle, by the
+//! causal driver the SLAM engine uses ([`echofield_frontend::replay`]):
+//! beams, DVL and attitude samples in time order ([`mission_records`]);
+//! the forward dead-reckoning filter ([`ForwardFilter`]) navigates,
+//! [`ReadyRotations`] cuts the beams into rotations and holds each until
+//! the navigation covers it (or the extrapolation horizon has passed),
+//! and each ready rotation becomes a node built exactly as the SLAM
+//! frontend builds one
 //! ([`build_node`]: the scan `S_k` motion-compensated into the rotation's
 //! central pose). The particle filter then takes the dead reckoning's
 //! motion since the previous rotation (with its covariance), the compass
@@ -16,13 +18,13 @@ use crate::slam::SlamConfig;
 use crate::slam::pipeline::prepare;
 use anyhow::{Context, Result, bail};
 use echofield_datasets::mcap::foxglove::ScanPoint;
-use echofield_frontend::dead_reckoning::{self, DeadReckoningConfig, ForwardFilter, Record};
+use echofield_frontend::dead_reckoning::{DeadReckoningConfig, ForwardFilter};
 use echofield_frontend::localization::{LocalizationStep, MonteCarloLocalizer};
 use echofield_frontend::nodes::{Skip, build_node};
-use echofield_frontend::rotation::{Rotation, RotationStream};
+use echofield_frontend::replay::{MissionRecord, ReadyRotations, mission_records};
+use echofield_frontend::rotation::Rotation;
 use echofield_frontend::sensors::{GroundTruthPose, Mission};
 use echofield_graph::Se2;
-use std::collections::VecDeque;
 use std::time::Instant;
 
 /// Particles kept per rotation for the MCAP's cloud (every n-th).
@@ -70,180 +72,140 @@ pub fn localize_mission(
         heading_offset_rad: config.dead_reckoning.heading_offset_rad + offset,
         ..config.dead_reckoning.clone()
     };
-    let mut navigation = ForwardFilter::new(&dr_config, &mission.mounting, false)
+    let navigation = ForwardFilter::new(&dr_config, &mission.mounting, false)
         .context("dead reckoning of the localised mission")?;
-    let mut stream = RotationStream::new(&config.rotation).context("rotation assembly")?;
-    let mut pending: VecDeque<Rotation> = VecDeque::new();
-    let mut records = dead_reckoning::merged_records(mission).peekable();
-    let mut latest_s = f64::NEG_INFINITY;
-    let mut state = ReplayState::default();
-    let horizon_s = config.dead_reckoning.max_extrapolation_s;
-    for beam in &mission.beams {
-        while let Some(record) = records.next_if(|r| r.stamp_s() <= beam.stamp_s) {
-            latest_s = latest_s.max(record.stamp_s());
-            push(&mut navigation, record)?;
-            state.process(
-                mission,
-                config,
-                &navigation,
-                &mut pending,
-                latest_s,
-                horizon_s,
-                filter,
-            )?;
-        }
-        if let Some(rotation) = stream.push(beam).context("rotation assembly")? {
-            pending.push_back(rotation);
-        }
-        latest_s = latest_s.max(beam.stamp_s);
-        state.process(
-            mission,
-            config,
-            &navigation,
-            &mut pending,
-            latest_s,
-            horizon_s,
-            filter,
-        )?;
-    }
-    for record in records {
-        latest_s = latest_s.max(record.stamp_s());
-        push(&mut navigation, record)?;
-        state.process(
-            mission,
-            config,
-            &navigation,
-            &mut pending,
-            latest_s,
-            horizon_s,
-            filter,
-        )?;
-    }
-    if let Some(rotation) = stream.finish() {
-        pending.push_back(rotation);
-    }
-    state.process(
+    let ready = ReadyRotations::new(&config.rotation, config.dead_reckoning.max_extrapolation_s)
+        .context("rotation assembly")?;
+    let mut replay = Replay {
         mission,
         config,
-        &navigation,
-        &mut pending,
-        f64::INFINITY,
-        horizon_s,
+        navigation,
+        ready,
         filter,
-    )?;
-    if state.rotations.is_empty() {
+        rotations: Vec::new(),
+        previous_s: None,
+    };
+    for record in mission_records(mission) {
+        replay.push(record)?;
+    }
+    replay.ready.finish();
+    replay.localize_ready()?;
+    if replay.rotations.is_empty() {
         bail!(
             "{}: no rotation of the mission is covered by its navigation (DVL and heading)",
             mission.name
         );
     }
     Ok(Localized {
-        rotations: state.rotations,
+        rotations: replay.rotations,
         ground_truth: mission.ground_truth.clone(),
         mission_name: mission.name.clone(),
         mounting: mission.mounting.clone(),
     })
 }
 
-fn push(filter: &mut ForwardFilter, record: Record<'_>) -> Result<()> {
-    match record {
-        Record::Dvl(s) => filter.push_dvl(s),
-        Record::Attitude(a) => filter.push_attitude(a),
-    }
-    .context("dead reckoning of the localised mission")
-}
-
-/// What the replay keeps between rotations.
-#[derive(Default)]
-struct ReplayState {
+/// The causal replay's state: the navigation, the rotations waiting for
+/// it, and what was localised so far.
+struct Replay<'a> {
+    mission: &'a Mission,
+    config: &'a SlamConfig,
+    navigation: ForwardFilter,
+    ready: ReadyRotations,
+    filter: &'a mut MonteCarloLocalizer,
     rotations: Vec<LocalizedRotation>,
     /// Stamp of the previous localised rotation, s.
     previous_s: Option<f64>,
 }
 
-impl ReplayState {
-    /// Localises the pending rotations the navigation now covers (or that
-    /// it will never cover: the latest sample is beyond their end plus the
-    /// extrapolation horizon), in order.
-    #[allow(clippy::too_many_arguments)]
-    fn process(
-        &mut self,
-        mission: &Mission,
-        config: &SlamConfig,
-        navigation: &ForwardFilter,
-        pending: &mut VecDeque<Rotation>,
-        latest_s: f64,
-        horizon_s: f64,
-        filter: &mut MonteCarloLocalizer,
-    ) -> Result<()> {
-        while let Some(rotation) = pending.front() {
-            let covered = navigation.latest_s() >= rotation.end_s;
-            if !covered && latest_s <= rotation.end_s + horizon_s {
-                return Ok(());
+impl Replay<'_> {
+    /// Takes the next record and localises the rotations it makes ready.
+    fn push(&mut self, record: MissionRecord<'_>) -> Result<()> {
+        match record {
+            MissionRecord::Dvl(s) => self.navigation.push_dvl(s),
+            MissionRecord::Attitude(a) => self.navigation.push_attitude(a),
+            MissionRecord::Beam(_, beam) => {
+                self.ready.push_beam(beam).context("rotation assembly")?;
+                return self.localize_ready();
             }
-            let Some(rotation) = pending.pop_front() else {
-                return Ok(());
-            };
-            let Some(nav) = navigation.navigation() else {
-                continue; // no navigation yet: the rotation is skipped
-            };
-            let t = Instant::now();
-            let node = match build_node(
-                &mission.beams[rotation.beams.clone()],
-                &rotation,
-                nav,
-                &mission.mounting,
-                &config.segmentation,
-                &config.image,
-            ) {
-                Ok(node) => node,
-                Err(Skip::Outside(_)) => continue,
-                Err(Skip::Fatal(e)) => return Err(e.into()),
-            };
-            let build_s = t.elapsed().as_secs_f64();
-            let t = Instant::now();
-            let motion = match self.previous_s {
-                Some(from_s) => {
-                    Some(nav.relative(from_s, node.stamp_s).with_context(|| {
-                        format!("dead reckoning of rotation {}", rotation.index)
-                    })?)
-                }
-                None => None,
-            };
-            let points = if node.in_dvl_gap {
-                &[][..]
-            } else {
-                &node.scan.points[..]
-            };
-            let step = filter.step(motion.as_ref(), node.dead_reckoning.theta(), points);
-            let filter_s = t.elapsed().as_secs_f64();
-            self.previous_s = Some(node.stamp_s);
-            let particles = filter.particles();
-            let stride = particles.len().div_ceil(CLOUD_POINTS).max(1);
-            let max_w = particles.iter().map(|p| p.weight).fold(0.0, f64::max);
-            let cloud = particles
-                .iter()
-                .step_by(stride)
-                .map(|p| ScanPoint {
-                    x_m: p.pose.x(),
-                    y_m: p.pose.y(),
-                    intensity: if max_w > 0.0 {
-                        (p.weight / max_w) as f32
-                    } else {
-                        1.0
-                    },
-                })
-                .collect();
-            self.rotations.push(LocalizedRotation {
-                rotation_index: rotation.index,
-                stamp_s: node.stamp_s,
-                dead_reckoning: node.dead_reckoning,
-                step,
-                filter_s,
-                build_s,
-                cloud,
-            });
         }
+        .context("dead reckoning of the localised mission")?;
+        self.ready.observe(record.stamp_s());
+        self.localize_ready()
+    }
+
+    /// Localises the rotations the navigation now covers (or will never
+    /// cover: [`ReadyRotations`]), in order.
+    fn localize_ready(&mut self) -> Result<()> {
+        for rotation in self.ready.take_ready(self.navigation.latest_s(), 1) {
+            self.localize(&rotation)?;
+        }
+        Ok(())
+    }
+
+    /// Localises one ready rotation; rotations without navigation yet, or
+    /// outside it, are skipped.
+    fn localize(&mut self, rotation: &Rotation) -> Result<()> {
+        let (mission, config) = (self.mission, self.config);
+        let Some(nav) = self.navigation.navigation() else {
+            return Ok(()); // no navigation yet: the rotation is skipped
+        };
+        let t = Instant::now();
+        let node = match build_node(
+            &mission.beams[rotation.beams.clone()],
+            rotation,
+            nav,
+            &mission.mounting,
+            &config.segmentation,
+            &config.image,
+        ) {
+            Ok(node) => node,
+            Err(Skip::Outside(_)) => return Ok(()),
+            Err(Skip::Fatal(e)) => return Err(e.into()),
+        };
+        let build_s = t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        let motion = match self.previous_s {
+            Some(from_s) => Some(
+                nav.relative(from_s, node.stamp_s)
+                    .with_context(|| format!("dead reckoning of rotation {}", rotation.index))?,
+            ),
+            None => None,
+        };
+        let points = if node.in_dvl_gap {
+            &[][..]
+        } else {
+            &node.scan.points[..]
+        };
+        let step = self
+            .filter
+            .step(motion.as_ref(), node.dead_reckoning.theta(), points);
+        let filter_s = t.elapsed().as_secs_f64();
+        self.previous_s = Some(node.stamp_s);
+        let particles = self.filter.particles();
+        let stride = particles.len().div_ceil(CLOUD_POINTS).max(1);
+        let max_w = particles.iter().map(|p| p.weight).fold(0.0, f64::max);
+        let cloud = particles
+            .iter()
+            .step_by(stride)
+            .map(|p| ScanPoint {
+                x_m: p.pose.x(),
+                y_m: p.pose.y(),
+                intensity: if max_w > 0.0 {
+                    (p.weight / max_w) as f32
+                } else {
+                    1.0
+                },
+            })
+            .collect();
+        self.rotations.push(LocalizedRotation {
+            rotation_index: rotation.index,
+            stamp_s: node.stamp_s,
+            dead_reckoning: node.dead_reckoning,
+            step,
+            filter_s,
+            build_s,
+            cloud,
+        });
         Ok(())
     }
 }

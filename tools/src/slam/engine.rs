@@ -17,7 +17,9 @@
 //! on samples stamped up to the moment it is emitted: a rotation is
 //! processed when the navigation has a sample at or after its last beam,
 //! or when any sample arrives more than `dead_reckoning.max_extrapolation_s`
-//! after it (the navigation then extrapolates or the rotation is skipped).
+//! after it (the navigation then extrapolates or the rotation is skipped):
+//! the rule of [`ReadyRotations`], the causal driver that
+//! `echofield localize` shares.
 //! The yaw-rate check runs over spans of past attitude samples and only
 //! raises the noise of later ones.
 //!
@@ -64,7 +66,8 @@ use super::result::{IntensityReport, SkippedRotation, StageTimings};
 use echofield_frontend::dead_reckoning::Navigation;
 use echofield_frontend::intensity::IntensityKind;
 use echofield_frontend::nodes::{NodeData, Skip, build_node};
-use echofield_frontend::rotation::{Rotation, RotationStream};
+use echofield_frontend::replay::ReadyRotations;
+use echofield_frontend::rotation::Rotation;
 use echofield_frontend::sensors::{Attitude, DvlVelocity, SensorMounting, SonarBeam};
 use echofield_frontend::warnings::Warnings;
 use echofield_graph::Se2;
@@ -102,13 +105,13 @@ pub struct SlamEngine<'c> {
     mission_name: String,
     mounting: SensorMounting,
     navigation: NavigationSource,
-    rotations: RotationStream,
+    /// Rotations assembled from the beams, waiting for the navigation
+    /// (the causal driver `localize` shares).
+    ready: ReadyRotations,
     /// Beams from index `beams_offset` on (those of rotations not yet
     /// processed and of the current unit).
     beams: VecDeque<SonarBeam>,
     beams_offset: usize,
-    /// Completed rotations waiting for the navigation.
-    pending: VecDeque<Rotation>,
     /// Ready rotations processed together: 1 online (each as soon as it
     /// is ready); in batch, with the whole navigation known, enough to
     /// build their nodes on every worker thread at once.
@@ -117,7 +120,6 @@ pub struct SlamEngine<'c> {
     rotation_ranges: Vec<(Range<usize>, f64)>,
     /// The farthest range any beam reaches, m.
     reach_m: f64,
-    latest_s: f64,
     graph: GraphState<'c>,
     skipped: Vec<SkippedRotation>,
     latencies_s: Vec<f64>,
@@ -172,8 +174,9 @@ impl<'c> SlamEngine<'c> {
         mounting: SensorMounting,
         navigation: NavigationSource,
     ) -> Result<Self, SlamError> {
-        let rotations = RotationStream::new(&config.rotation)
-            .map_err(|e| SlamError::frontend("rotation assembly", e))?;
+        let ready =
+            ReadyRotations::new(&config.rotation, config.dead_reckoning.max_extrapolation_s)
+                .map_err(|e| SlamError::frontend("rotation assembly", e))?;
         let batch_size = match navigation {
             NavigationSource::Given(_) => 8 * rayon::current_num_threads().max(1),
             _ => 1,
@@ -183,14 +186,12 @@ impl<'c> SlamEngine<'c> {
             mission_name: mission_name.to_string(),
             mounting,
             navigation,
-            rotations,
+            ready,
             beams: VecDeque::new(),
             beams_offset: 0,
-            pending: VecDeque::new(),
             batch_size,
             rotation_ranges: Vec::new(),
             reach_m: 0.0,
-            latest_s: f64::NEG_INFINITY,
             graph: GraphState::new(config)?,
             skipped: Vec::new(),
             latencies_s: Vec::new(),
@@ -229,16 +230,14 @@ impl<'c> SlamEngine<'c> {
     pub fn push_beam(&mut self, beam: SonarBeam) -> Result<Vec<NodeEvent>, SlamError> {
         let t = Instant::now();
         let rotation = self
-            .rotations
-            .push(&beam)
+            .ready
+            .push_beam(&beam)
             .map_err(|e| SlamError::frontend("rotation assembly", e))?;
-        self.reach_m = self.reach_m.max(beam.max_range_m());
-        self.observe(beam.stamp_s);
         if let Some(rotation) = rotation {
             self.rotation_ranges
                 .push((rotation.beams.clone(), beam.stamp_s));
-            self.pending.push_back(rotation);
         }
+        self.reach_m = self.reach_m.max(beam.max_range_m());
         self.beams.push_back(beam);
         self.timings.scan_image_building_s += t.elapsed().as_secs_f64();
         self.process_ready()
@@ -249,7 +248,7 @@ impl<'c> SlamEngine<'c> {
         let t = Instant::now();
         self.navigation.push_dvl(sample)?;
         self.timings.dead_reckoning_s += t.elapsed().as_secs_f64();
-        self.observe(sample.stamp_s);
+        self.ready.observe(sample.stamp_s);
         self.process_ready()
     }
 
@@ -258,32 +257,19 @@ impl<'c> SlamEngine<'c> {
         let t = Instant::now();
         self.navigation.push_attitude(sample)?;
         self.timings.dead_reckoning_s += t.elapsed().as_secs_f64();
-        self.observe(sample.stamp_s);
+        self.ready.observe(sample.stamp_s);
         self.process_ready()
-    }
-
-    fn observe(&mut self, stamp_s: f64) {
-        if stamp_s.is_finite() {
-            self.latest_s = self.latest_s.max(stamp_s);
-        }
     }
 
     /// Processes the pending rotations whose time has come (see the
     /// module doc), in order; in batch, once [`Self::batch_size`] of them
     /// are ready (or at the end), their nodes built in parallel.
     fn process_ready(&mut self) -> Result<Vec<NodeEvent>, SlamError> {
-        let horizon_s = self.config.dead_reckoning.max_extrapolation_s;
         let covered_s = self.navigation.covered_until_s();
-        let ready = self
-            .pending
-            .iter()
-            .take_while(|r| covered_s >= r.end_s || self.latest_s > r.end_s + horizon_s)
-            .count();
-        let finishing = self.latest_s == f64::INFINITY;
-        if ready == 0 || (ready < self.batch_size && !finishing) {
+        let rotations = self.ready.take_ready(covered_s, self.batch_size);
+        if rotations.is_empty() {
             return Ok(Vec::new());
         }
-        let rotations: Vec<Rotation> = self.pending.drain(..ready).collect();
         let t = Instant::now();
         let built = self.build_nodes(&rotations);
         let build_s = t.elapsed().as_secs_f64() / rotations.len() as f64;

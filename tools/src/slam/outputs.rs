@@ -113,8 +113,9 @@ pub fn write_output_files(dir: &Path, output: &SlamOutput, mission: &Mission) ->
     // another thread when there is one) and renamed into place only after
     // them, which keeps the order of the module doc.
     let mcap_path = dir.join("mission.mcap");
-    // The mosaic goes into `mosaic.png` and `mission.mcap`: built once.
-    let mosaic = timed("mosaic grid", || mosaic_grid(output))?;
+    // The mosaic goes into `mosaic.png` and `mission.mcap`: built once,
+    // in the same pass over the node images as the MCAP's pictures.
+    let (mosaic, pictures) = timed("node images", || mosaic_and_pictures(output))?;
     let (others, mcap) = rayon::join(
         || -> Result<()> {
             timed("tables", || write_tables(dir, output, &loops))?;
@@ -130,6 +131,7 @@ pub fn write_output_files(dir: &Path, output: &SlamOutput, mission: &Mission) ->
                     &loops,
                     world_from_gt,
                     Some(&mosaic),
+                    Some(&pictures),
                 )
             })
         },
@@ -353,33 +355,57 @@ const MOSAIC_BATCH: usize = 16;
 
 /// The mosaic's world grid: every node's `I_k` at its optimised pose.
 pub fn mosaic_grid(output: &SlamOutput) -> Result<Grid> {
+    node_images(output, false).map(|(grid, _)| grid)
+}
+
+/// [`mosaic_grid`] and each node's picture for `mission.mcap`
+/// ([`foxglove::image_png`]; `None` for a node without an image), in one
+/// pass that builds each released image's raster once
+/// ([`StoredImage::grid_once`](echofield_frontend::image::StoredImage::grid_once)).
+pub fn mosaic_and_pictures(output: &SlamOutput) -> Result<(Grid, Vec<Option<Vec<u8>>>)> {
+    node_images(output, true)
+}
+
+/// The mosaic and, with `pictures`, the nodes' pictures (else none).
+fn node_images(output: &SlamOutput, pictures: bool) -> Result<(Grid, Vec<Option<Vec<u8>>>)> {
     use rayon::prelude::*;
-    let placed: Vec<(usize, Se2)> = output
+    let placeable: Vec<bool> = output
         .nodes
         .iter()
         .zip(&output.images)
-        .enumerate()
-        .filter(|(_, (node, image))| {
+        .map(|(node, image)| {
             !image.is_empty() && mosaic::placeable(&image.extent(), &node.optimised)
         })
-        .map(|(k, (node, _))| (k, node.optimised))
         .collect();
-    let extents = placed
-        .iter()
-        .map(|&(k, pose)| (output.images[k].extent(), pose));
+    let extents = (0..output.nodes.len())
+        .filter(|&k| placeable[k])
+        .map(|k| (output.images[k].extent(), output.nodes[k].optimised));
     let mut canvas = MosaicCanvas::new(extents, &MosaicConfig::default())?;
-    for batch in placed.chunks(MOSAIC_BATCH) {
-        let images = batch
+    let looked: Vec<usize> = (0..output.nodes.len())
+        .filter(|&k| placeable[k] || (pictures && !output.images[k].is_empty()))
+        .collect();
+    let mut encoded: Vec<Option<Vec<u8>>> = vec![None; output.nodes.len()];
+    for batch in looked.chunks(MOSAIC_BATCH) {
+        let looks = batch
             .par_iter()
-            .map(|&(k, _)| {
-                output.images[k]
-                    .image_once()
-                    .with_context(|| format!("acoustic image of node {k}"))
+            .map_init(Vec::new, |pixels, &k| -> Result<_> {
+                let grid = output.images[k]
+                    .grid_once()
+                    .with_context(|| format!("acoustic image of node {k}"))?;
+                let png = pictures
+                    .then(|| foxglove::image_png(&grid, pixels))
+                    .transpose()
+                    .with_context(|| format!("picture of node {k}"))?;
+                Ok((grid, png))
             })
             .collect::<Vec<_>>();
-        for (&(_, pose), image) in batch.iter().zip(images) {
-            canvas.place(image?.grid(), &pose);
+        for (&k, look) in batch.iter().zip(looks) {
+            let (grid, png) = look?;
+            if placeable[k] {
+                canvas.place(&grid, &output.nodes[k].optimised);
+            }
+            encoded[k] = png;
         }
     }
-    Ok(canvas.finish())
+    Ok((canvas.finish(), encoded))
 }

@@ -8,6 +8,7 @@ use super::result::{IntensityReport, SlamOutput};
 use super::{ProgressSink, SlamError, check_sensors};
 use echofield_frontend::dead_reckoning;
 use echofield_frontend::intensity::{self, IntensityKind};
+use echofield_frontend::replay::{MissionRecord, mission_records};
 use echofield_frontend::screening;
 use echofield_frontend::sensors::Mission;
 use echofield_frontend::warnings::Warnings;
@@ -92,47 +93,35 @@ fn run(
 }
 
 /// Pushes every record of `mission` into `engine` in time order (at equal
-/// stamps: DVL, attitude, then beams) and hands each event to `on_event`.
+/// stamps: DVL, attitude, then beams: [`mission_records`], the causal
+/// driver's order) and hands each event to `on_event`.
 pub fn replay(
     mission: &Mission,
     engine: &mut SlamEngine<'_>,
     progress: &dyn ProgressSink,
     on_event: &mut dyn FnMut(NodeEvent),
 ) -> Result<(), SlamError> {
-    let mut navigation = dead_reckoning::merged_records(mission).peekable();
-    let mut emit = |events: Vec<NodeEvent>| {
+    let total = mission.beams.len();
+    for record in mission_records(mission) {
+        let events = match record {
+            MissionRecord::Dvl(s) => engine.push_dvl(s)?,
+            MissionRecord::Attitude(a) => engine.push_attitude(a)?,
+            MissionRecord::Beam(i, beam) => {
+                // A bar redraws at most ~20 times a second anyway: tell it
+                // every 256 beams (about one rotation of a MiniKing).
+                if i % 256 == 0 {
+                    progress.beams(i, total);
+                }
+                engine.push_beam(beam.clone())?
+            }
+        };
         for event in events {
             progress.node_done(event.node_id + 1, event.loops_accepted);
             on_event(event);
         }
-    };
-    let total = mission.beams.len();
-    for (done, beam) in mission.beams.iter().enumerate() {
-        // A bar redraws at most ~20 times a second anyway: tell it every
-        // 256 beams (about one rotation of a MiniKing).
-        if done % 256 == 0 {
-            progress.beams(done, total);
-        }
-        while let Some(record) = navigation.next_if(|r| r.stamp_s() <= beam.stamp_s) {
-            emit(push_navigation(engine, record)?);
-        }
-        emit(engine.push_beam(beam.clone())?);
-    }
-    for record in navigation {
-        emit(push_navigation(engine, record)?);
     }
     progress.beams(total, total);
     Ok(())
-}
-
-fn push_navigation(
-    engine: &mut SlamEngine<'_>,
-    record: dead_reckoning::Record,
-) -> Result<Vec<NodeEvent>, SlamError> {
-    match record {
-        dead_reckoning::Record::Dvl(s) => engine.push_dvl(s),
-        dead_reckoning::Record::Attitude(a) => engine.push_attitude(a),
-    }
 }
 
 pub(crate) type Prepared<'m, 'c> = (

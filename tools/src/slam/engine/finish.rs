@@ -26,19 +26,17 @@ impl SlamEngine<'_> {
     /// has a scan or an image, the navigation never started, a failed
     /// final solve.
     pub fn finish(mut self, ground_truth: &[GroundTruthPose]) -> Result<SlamOutput, SlamError> {
-        if let Some(rotation) = self.rotations.finish() {
+        if let Some(rotation) = self.ready.finish() {
             self.rotation_ranges
                 .push((rotation.beams.clone(), f64::NAN));
-            self.pending.push_back(rotation);
         }
-        self.latest_s = f64::INFINITY;
         self.process_ready()?;
         if self.rotation_ranges.is_empty() {
             let error = FrontendError::insufficient(
                 "rotation assembly",
                 format!(
                     "no complete rotation or sector sweep in {} beams (set keep_partial to keep partial ones)",
-                    self.rotations.beams()
+                    self.ready.beams()
                 ),
             );
             return Err(SlamError::frontend("rotation assembly", error));
@@ -75,7 +73,16 @@ impl SlamEngine<'_> {
     fn close_graph(&mut self, warnings: &mut Warnings) -> Result<(), SlamError> {
         let graph = &mut self.graph;
         let t = Instant::now();
+        let rebuilt = |nodes: &[echofield_frontend::nodes::NodeData]| -> usize {
+            nodes.iter().map(|n| n.image.rebuilds()).sum()
+        };
+        let before = rebuilt(&graph.nodes);
         graph.closer.densify(&graph.nodes, &mut graph.estimate)?;
+        tracing::debug!(
+            mission_pass = before,
+            densification = rebuilt(&graph.nodes) - before,
+            "images rebuilt for matches"
+        );
         graph.closer.finish();
         graph.loops_s += t.elapsed().as_secs_f64();
         if let Some(e) = &graph.incremental_error {

@@ -29,7 +29,7 @@ use crate::slam::SlamOutput;
 use anyhow::{Context, Result};
 use echofield_datasets::mcap::foxglove::{GridCells, LineSegment, ScanPoint};
 use echofield_datasets::mcap::{CompletedMcap, MissionWriter};
-use echofield_frontend::image::{AcousticImage, Grid};
+use echofield_frontend::image::Grid;
 use echofield_frontend::sensors::SensorMounting;
 use echofield_graph::Se2;
 use image::ExtendedColorType;
@@ -57,6 +57,7 @@ pub fn write_results_mcap(
         loops,
         world_from_ground_truth,
         mosaic,
+        None,
     )?
     .persist()?;
     Ok(())
@@ -64,7 +65,9 @@ pub fn write_results_mcap(
 
 /// [`write_results_mcap`] up to the last step: the file is complete at a
 /// temporary path, and replaces `path` only when persisted. `mosaic` is the
-/// world-frame mosaic grid (`None`: no `/slam/mosaic`).
+/// world-frame mosaic grid (`None`: no `/slam/mosaic`). `pictures` are the
+/// nodes' images already encoded with [`image_png`], one per node (`None`
+/// in it: a node without an image); `None`: encoded here.
 pub fn complete_results_mcap(
     path: &Path,
     output: &SlamOutput,
@@ -72,6 +75,7 @@ pub fn complete_results_mcap(
     loops: &[LoopRow],
     world_from_ground_truth: Option<Se2>,
     mosaic: Option<&Grid>,
+    pictures: Option<&[Option<Vec<u8>>]>,
 ) -> Result<CompletedMcap> {
     let Some(first) = output.nodes.first() else {
         anyhow::bail!("the run has no nodes");
@@ -121,21 +125,15 @@ pub fn complete_results_mcap(
 
     // The images are encoded in parallel (with rayon) and written in node
     // order; an error names the first node whose image failed.
-    let pngs: Vec<Result<Option<Vec<u8>>>> = output
-        .images
-        .par_iter()
-        .enumerate()
-        .map_init(Vec::new, |pixels, (k, image)| {
-            (!image.is_empty())
-                .then(|| {
-                    let image = image.image_once()?;
-                    image_png(&image, pixels)
-                })
-                .transpose()
-                .with_context(|| format!("acoustic image of node {k}"))
-        })
-        .collect();
-    let mut pngs = pngs.into_iter();
+    let encoded;
+    let pictures = match pictures {
+        Some(p) if p.len() == output.nodes.len() => p,
+        _ => {
+            encoded = encode_pictures(output)?;
+            &encoded[..]
+        }
+    };
+    let mut pngs = pictures.iter();
     for (k, node) in output.nodes.iter().enumerate() {
         let t = node.stamp_s;
         w.write_frame_transform("/tf", t, FRAME_WORLD, FRAME_VEHICLE, &node.optimised)?;
@@ -153,11 +151,28 @@ pub fn complete_results_mcap(
                 .collect();
             w.write_point_cloud("/slam/scan", t, FRAME_WORLD, &node.optimised, &points)?;
         }
-        if let Some(png) = pngs.next().transpose()?.flatten() {
-            w.write_compressed_image("/slam/acoustic_image", t, FRAME_VEHICLE, "png", &png)?;
+        if let Some(png) = pngs.next().and_then(Option::as_ref) {
+            w.write_compressed_image("/slam/acoustic_image", t, FRAME_VEHICLE, "png", png)?;
         }
     }
     Ok(w.complete()?)
+}
+
+/// Every node's picture ([`image_png`]; `None`: no image), in parallel;
+/// an error names the first node, in order, whose image failed.
+fn encode_pictures(output: &SlamOutput) -> Result<Vec<Option<Vec<u8>>>> {
+    let pngs: Vec<Result<Option<Vec<u8>>>> = output
+        .images
+        .par_iter()
+        .enumerate()
+        .map_init(Vec::new, |pixels, (k, image)| {
+            (!image.is_empty())
+                .then(|| image_png(&image.grid_once()?, pixels))
+                .transpose()
+                .with_context(|| format!("acoustic image of node {k}"))
+        })
+        .collect();
+    pngs.into_iter().collect()
 }
 
 /// Colours of loop lines (red, green, blue, alpha).
@@ -202,12 +217,12 @@ fn intensity_level(v: f32) -> u8 {
     (v.clamp(0.0, 1.0) * 255.0) as u8
 }
 
-/// `I_k` as an 8-bit grey PNG, x to the right and y up (row 0 is the
-/// largest y), max-pooled over 2 x 2 cells: a quarter of the pixels to
-/// encode and store, and no echo lost. `pixels` is scratch space reused
-/// between calls.
-pub fn image_png(image: &AcousticImage, pixels: &mut Vec<u8>) -> Result<Vec<u8>> {
-    let grid = image.grid();
+/// `I_k` (its search raster,
+/// [`AcousticImage::grid`](echofield_frontend::image::AcousticImage::grid)) as an 8-bit grey
+/// PNG, x to the right and y up (row 0 is the largest y), max-pooled over
+/// 2 x 2 cells: a quarter of the pixels to encode and store, and no echo
+/// lost. `pixels` is scratch space reused between calls.
+pub fn image_png(grid: &Grid, pixels: &mut Vec<u8>) -> Result<Vec<u8>> {
     let (w, h) = (grid.width(), grid.height());
     let (pw, ph) = (w.div_ceil(2), h.div_ceil(2));
     pixels.clear();
@@ -247,8 +262,7 @@ mod tests {
             0.4, 0.3, 0.0, //
             1.5, 0.0, 0.5, // clamped to 1
         ]);
-        let image = AcousticImage::from_grid(grid, 0);
-        let png = image_png(&image, &mut Vec::new()).unwrap();
+        let png = image_png(&grid, &mut Vec::new()).unwrap();
         let picture = image::load_from_memory(&png).unwrap().to_luma8();
         assert_eq!(picture.dimensions(), (2, 2));
         let level = |v: f32| (v * 255.0) as u8;
