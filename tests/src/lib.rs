@@ -110,3 +110,61 @@ pub fn stpere_dgps_conventions() -> echofield_frontend::mounting::MountingConfig
         ..Default::default()
     }
 }
+
+/// `mission` cut at `cut_s`: the records (beams, DVL, attitude, ground
+/// truth) stamped before it, and those stamped from it on.
+pub fn split_mission_at(
+    mission: &echofield_frontend::sensors::Mission,
+    cut_s: f64,
+) -> (
+    echofield_frontend::sensors::Mission,
+    echofield_frontend::sensors::Mission,
+) {
+    let mut a = mission.clone();
+    let mut b = mission.clone();
+    a.beams.retain(|r| r.stamp_s < cut_s);
+    b.beams.retain(|r| r.stamp_s >= cut_s);
+    a.dvl.retain(|r| r.stamp_s < cut_s);
+    b.dvl.retain(|r| r.stamp_s >= cut_s);
+    a.attitude.retain(|r| r.stamp_s < cut_s);
+    b.attitude.retain(|r| r.stamp_s >= cut_s);
+    a.ground_truth.retain(|r| r.stamp_s < cut_s);
+    b.ground_truth.retain(|r| r.stamp_s >= cut_s);
+    (a, b)
+}
+
+/// The prior map of `localize` made from `output`, the SLAM run of
+/// `mission` with `config`: its node images at their optimised poses, the
+/// map frame related to the mission's ground truth by the run's nodes
+/// fitted onto theirs (SE(2); `truth_from_map`).
+pub fn prior_map_of_run(
+    mission: &echofield_frontend::sensors::Mission,
+    output: &echofield::slam::SlamOutput,
+    config: &SlamConfig,
+    localize: &echofield_frontend::localization::LocalizationConfig,
+) -> echofield::localize::PriorMap {
+    let trajectory: Vec<echofield_graph::io::TrajectoryPose> = output
+        .nodes
+        .iter()
+        .map(|n| echofield_graph::io::TrajectoryPose {
+            stamp_s: n.stamp_s,
+            pose: n.optimised,
+        })
+        .collect();
+    let (mut p, mut q) = (Vec::new(), Vec::new());
+    for n in &output.nodes {
+        if let Some(t) = echofield::localize::report::truth_at(&mission.ground_truth, n.stamp_s) {
+            p.push(n.optimised.translation());
+            q.push(t.translation());
+        }
+    }
+    let truth_from_map = echofield::eval::align_se2(&p, &q);
+    echofield::localize::build_prior_map(
+        mission,
+        config,
+        &trajectory,
+        Some(truth_from_map),
+        localize,
+    )
+    .expect("the prior map builds")
+}

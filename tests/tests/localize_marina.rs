@@ -14,15 +14,13 @@
 
 use echofield::eval::align_se2;
 use echofield::localize::report::truth_at;
-use echofield::localize::{
-    Localized, PriorMap, build_prior_map, build_report, localize, outputs::write_files,
-};
+use echofield::localize::{Localized, PriorMap, build_report, localize, outputs::write_files};
 use echofield::slam::{NoProgress, SlamConfig, run_mission};
 use echofield_datasets::sim::{Scenario, simulate_mission};
 use echofield_frontend::localization::{LocalizationConfig, LocalizationState};
 use echofield_frontend::sensors::Mission;
 use echofield_graph::Se2;
-use echofield_graph::io::TrajectoryPose;
+use echofield_tests::prior_map_of_run;
 use std::sync::OnceLock;
 
 /// ATE bound after convergence, m. The issue asks for 0.3 m; the whole
@@ -113,31 +111,7 @@ fn map() -> &'static PriorMap {
         let mission = marina(1);
         let config = SlamConfig::default();
         let output = run_mission(&mission, &config, &NoProgress).unwrap();
-        let trajectory: Vec<TrajectoryPose> = output
-            .nodes
-            .iter()
-            .map(|n| TrajectoryPose {
-                stamp_s: n.stamp_s,
-                pose: n.optimised,
-            })
-            .collect();
-        // The map frame against the ground truth: the run's nodes fitted.
-        let (mut p, mut q) = (Vec::new(), Vec::new());
-        for n in &output.nodes {
-            if let Some(t) = truth_at(&mission.ground_truth, n.stamp_s) {
-                p.push(n.optimised.translation());
-                q.push(t.translation());
-            }
-        }
-        let truth_from_map = align_se2(&p, &q);
-        build_prior_map(
-            &mission,
-            &config,
-            &trajectory,
-            Some(truth_from_map),
-            &LocalizationConfig::default(),
-        )
-        .unwrap()
+        prior_map_of_run(&mission, &output, &config, &LocalizationConfig::default())
     })
 }
 

@@ -15,36 +15,11 @@
 use echofield::calibration::{CalibrateSettings, calibrate_mission};
 use echofield::eval::align_se2;
 use echofield::localize::report::truth_at;
-use echofield::localize::{build_prior_map, build_report, localize};
+use echofield::localize::{build_report, localize};
 use echofield::slam::{NoProgress, SlamConfig, run_mission};
 use echofield_frontend::localization::{LocalizationConfig, LocalizationState};
-use echofield_frontend::sensors::{Mission, SweepTiming};
-use echofield_graph::io::TrajectoryPose;
-use echofield_tests::{datasets_dir, stpere_point_set_mission};
-
-/// Begin time (Unix s) of point-set rotation `k` (1-based), from the
-/// committed `keyFrameTimeStamps.csv` (`keyFrame,keyFrameBeginning,keyFrameEnd`).
-fn rotation_begin_s(k: u32) -> f64 {
-    let path = datasets_dir().join("stpere-marina-sonar/keyFrameTimeStamps.csv");
-    let text = std::fs::read_to_string(&path).unwrap();
-    text.lines()
-        .skip(1)
-        .map(|l| l.split(',').map(str::trim).collect::<Vec<_>>())
-        .find(|f| f[0].parse::<u32>().ok() == Some(k))
-        .map(|f| f[1].parse::<f64>().unwrap())
-        .unwrap_or_else(|| panic!("rotation {k} in {}", path.display()))
-}
-
-/// The records of `mission` with stamps in `[from_s, to_s)`.
-fn between(mission: &Mission, from_s: f64, to_s: f64) -> Mission {
-    let inside = |t: f64| t >= from_s && t < to_s;
-    let mut m = mission.clone();
-    m.beams.retain(|b| inside(b.stamp_s));
-    m.dvl.retain(|d| inside(d.stamp_s));
-    m.attitude.retain(|a| inside(a.stamp_s));
-    m.ground_truth.retain(|g| inside(g.stamp_s));
-    m
-}
+use echofield_frontend::sensors::SweepTiming;
+use echofield_tests::{prior_map_of_run, split_mission_at, stpere_point_set_mission};
 
 #[test]
 fn the_second_half_of_real_st_pere_localises_on_the_first_halfs_map() {
@@ -54,40 +29,21 @@ fn the_second_half_of_real_st_pere_localises_on_the_first_halfs_map() {
         mounting: calibration.mounting_config(),
         ..SlamConfig::default()
     };
-    // Half a beam period (68 ms) before the stamp: the begin time equals
-    // the first beam's stamp only to 1 ms.
-    let split_s = rotation_begin_s(61) - 0.034;
-    let first = between(&whole, f64::NEG_INFINITY, split_s);
-    let second = between(&whole, split_s, f64::INFINITY);
+    // 200 beams per rotation (README, "Real data"): rotation 61 starts at
+    // beam 12 000.
+    let (first, second) = split_mission_at(&whole, whole.beams[60 * 200].stamp_s);
 
     // The map: the SLAM run of rotations 1-60 at its optimised poses.
     let run = run_mission(&first, &config, &NoProgress).unwrap();
-    let trajectory: Vec<TrajectoryPose> = run
+    let dgps_nodes = run
         .nodes
         .iter()
-        .map(|n| TrajectoryPose {
-            stamp_s: n.stamp_s,
-            pose: n.optimised,
-        })
-        .collect();
-    let (mut p, mut q) = (Vec::new(), Vec::new());
-    for n in &run.nodes {
-        if let Some(t) = truth_at(&first.ground_truth, n.stamp_s) {
-            p.push(n.optimised.translation());
-            q.push(t.translation());
-        }
-    }
-    assert!(p.len() >= 40, "{} map nodes with DGPS", p.len());
-    let dgps_from_map = align_se2(&p, &q);
+        .filter(|n| truth_at(&first.ground_truth, n.stamp_s).is_some())
+        .count();
+    assert!(dgps_nodes >= 40, "{dgps_nodes} map nodes with DGPS");
     let localize_config = LocalizationConfig::default();
-    let map = build_prior_map(
-        &first,
-        &config,
-        &trajectory,
-        Some(dgps_from_map),
-        &localize_config,
-    )
-    .unwrap();
+    let map = prior_map_of_run(&first, &run, &config, &localize_config);
+    let dgps_from_map = map.truth_from_map.unwrap();
 
     let localized = localize(&second, &map, &localize_config).unwrap();
     let rotations = &localized.rotations;

@@ -24,7 +24,7 @@ use echofield_datasets::sim::scenes::marina;
 use echofield_datasets::sim::{Scenario, SimConfig, follow_route, simulate_mission};
 use echofield_frontend::sensors::{Mission, SweepTiming};
 use echofield_graph::Se2;
-use echofield_tests::stpere_point_set_mission;
+use echofield_tests::{split_mission_at, stpere_point_set_mission};
 use std::sync::OnceLock;
 
 /// The run of marina seed 1 (the first mission, the map frame).
@@ -205,23 +205,6 @@ fn a_canyon_mission_is_not_merged_with_the_marina() {
     );
 }
 
-/// `mission` cut at `cut_s`: the records before it and those from it on.
-fn split_at(mission: &Mission, cut_s: f64) -> (Mission, Mission) {
-    let mut a = mission.clone();
-    let mut b = mission.clone();
-    a.beams.retain(|r| r.stamp_s < cut_s);
-    b.beams.retain(|r| r.stamp_s >= cut_s);
-    a.dvl.retain(|r| r.stamp_s < cut_s);
-    b.dvl.retain(|r| r.stamp_s >= cut_s);
-    a.attitude.retain(|r| r.stamp_s < cut_s);
-    b.attitude.retain(|r| r.stamp_s >= cut_s);
-    a.ground_truth.retain(|r| r.stamp_s < cut_s);
-    b.ground_truth.retain(|r| r.stamp_s >= cut_s);
-    a.name += " 1-60";
-    b.name += " 61-115";
-    (a, b)
-}
-
 #[test]
 fn the_real_st_pere_halves_merge() {
     let mission = stpere_point_set_mission(Some(SweepTiming::AngleIncreasing));
@@ -233,7 +216,9 @@ fn the_real_st_pere_halves_merge() {
     // 200 beams per rotation (README, "Real data"): rotation 61 starts at
     // beam 12 000.
     let cut_s = mission.beams[60 * 200].stamp_s;
-    let (first, second) = split_at(&mission, cut_s);
+    let (mut first, mut second) = split_mission_at(&mission, cut_s);
+    first.name += " 1-60";
+    second.name += " 61-115";
     let a = run_mission(&first, &config, &NoProgress).unwrap();
     let b = run_mission(&second, &config, &NoProgress).unwrap();
     let out = combine(vec![a, b], &config).unwrap();

@@ -18,7 +18,7 @@
 //! number of map nodes it overlaps.
 
 use crate::eval::align_se2;
-use crate::slam::outputs::mosaic::{MosaicBlend, MosaicConfig, build_mosaic};
+use crate::slam::outputs::mosaic::{MosaicConfig, build_mosaic};
 use crate::slam::pipeline::prepare;
 use crate::slam::{SlamConfig, load_mission_with_keyframes};
 use anyhow::{Context, Result, bail};
@@ -186,14 +186,7 @@ pub fn build_prior_map(
     let images: Vec<_> = resident.iter().map(|(i, p)| (i.grid(), *p)).collect();
     let mosaic = build_mosaic(
         &images,
-        &MosaicConfig {
-            min_cell_size_m: localize.field_cell_m,
-            max_side_px: 20_000,
-            blend: MosaicBlend::Max,
-            floor: 0.05,
-            crop_level: 0.05,
-            crop_margin_m: 10.0,
-        },
+        &MosaicConfig::likelihood_field(localize.field_cell_m),
     )?;
     let footprints: Vec<(Se2, f64)> = nodes.iter().map(|(n, p)| (*p, n.footprint_m)).collect();
     let field = LikelihoodField::new(mosaic, &footprints, localize.field_smoothing_m)?;

@@ -24,7 +24,7 @@
 //! a mission in another place gives no agreeing set and no placement.
 
 use crate::slam::SlamOutput;
-use crate::slam::outputs::mosaic::{MosaicBlend, MosaicConfig, build_mosaic};
+use crate::slam::outputs::mosaic::{MosaicConfig, build_mosaic};
 use anyhow::{Result, bail};
 use echofield_frontend::localization::LikelihoodField;
 use echofield_graph::Se2;
@@ -166,17 +166,7 @@ impl MapFields {
         }
         let grids: Vec<_> = images.iter().map(|(i, p)| (i.grid(), *p)).collect();
         let field = |cell_m: f64, smoothing_m: f64| -> Result<LikelihoodField> {
-            let mosaic = build_mosaic(
-                &grids,
-                &MosaicConfig {
-                    min_cell_size_m: cell_m,
-                    max_side_px: 20_000,
-                    blend: MosaicBlend::Max,
-                    floor: 0.05,
-                    crop_level: 0.05,
-                    crop_margin_m: 10.0,
-                },
-            )?;
+            let mosaic = build_mosaic(&grids, &MosaicConfig::likelihood_field(cell_m))?;
             Ok(LikelihoodField::new(mosaic, &footprints, smoothing_m)?)
         };
         Ok(Self {

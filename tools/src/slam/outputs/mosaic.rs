@@ -69,6 +69,25 @@ impl Default for MosaicConfig {
     }
 }
 
+impl MosaicConfig {
+    /// The mosaic behind a likelihood field of node images (the prior map
+    /// of `localize`, the placement map of several missions), with cells
+    /// of `cell_m`: the strongest echo per cell, every cell down to 0.05
+    /// kept (a field needs the faint walls too), cropped 10 m beyond them,
+    /// and a side of up to 20,000 cells so that `cell_m` is kept on any
+    /// harbour-sized map.
+    pub fn likelihood_field(cell_m: f64) -> Self {
+        Self {
+            min_cell_size_m: cell_m,
+            max_side_px: 20_000,
+            blend: MosaicBlend::Max,
+            floor: 0.05,
+            crop_level: 0.05,
+            crop_margin_m: 10.0,
+        }
+    }
+}
+
 /// The world-frame corners of a raster of `extent` placed by
 /// `world_from_image`.
 fn corners(extent: &GridExtent, world_from_image: &Se2) -> [(f64, f64); 4] {
