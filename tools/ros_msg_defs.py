@@ -20,8 +20,8 @@ Retyped (fields only) from the packages' repositories:
 
 from rosbags.typesys import get_types_from_msg
 
-DEFS = {
-    "ping360_sonar_msgs/msg/SonarEcho": """
+# ping360_sonar_msgs/SonarEcho (ROS 2) and ping360_sonar/SonarEcho (ROS 1).
+PING360_SONAR_ECHO = """
 std_msgs/Header header
 float32 angle
 uint8 gain
@@ -30,7 +30,10 @@ uint16 transmit_frequency
 uint16 speed_of_sound
 uint8 range
 uint8[] intensities
-""",
+"""
+
+DEFS = {
+    "ping360_sonar_msgs/msg/SonarEcho": PING360_SONAR_ECHO,
     "marine_acoustic_msgs/msg/PingInfo": """
 float32 frequency
 float32 sound_speed
@@ -121,16 +124,9 @@ bool velocity_valid
 int64 status
 string form
 """,
-    "ping360_sonar/msg/SonarEcho": """
-std_msgs/Header header
-float32 angle
-uint8 gain
-uint16 number_of_samples
-uint16 transmit_frequency
-uint16 speed_of_sound
-uint8 range
-uint8[] intensities
-""",
+    # The ROS 1 driver's message has the same fields (it writes `angle` in
+    # gradians, not the radians of its comment: datasets/README.md).
+    "ping360_sonar/msg/SonarEcho": PING360_SONAR_ECHO,
     "cirs_girona_cala_viuda/msg/RangeImageBeam": """
 std_msgs/Header header
 float64 angle_grad
