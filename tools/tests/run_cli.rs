@@ -319,3 +319,64 @@ fn online_run_writes_the_emitted_estimates_and_the_latency_report() {
         serde_json::from_str(&std::fs::read_to_string(batch.join("report.json")).unwrap()).unwrap();
     assert!(report.get("online").is_none());
 }
+
+/// `echofield run A B`: two missions give one output folder with a mission
+/// column (whether or not the second is placed on the first, which the
+/// library tests of `slam::multi` judge), and `--online` with two missions
+/// is refused before anything is written.
+#[test]
+fn two_missions_write_one_folder_with_a_mission_column() {
+    let dir = tempfile::tempdir().unwrap();
+    let (da, db) = (dir.path().join("a"), dir.path().join("b"));
+    std::fs::create_dir_all(&da).unwrap();
+    std::fs::create_dir_all(&db).unwrap();
+    let (a, b) = (simulated_tank(&da, "1"), simulated_tank(&db, "2"));
+
+    let refused = dir.path().join("online");
+    let online = Command::new(env!("CARGO_BIN_EXE_echofield"))
+        .arg("run")
+        .args([&a, &b])
+        .arg("--online")
+        .arg("--output")
+        .arg(&refused)
+        .output()
+        .unwrap();
+    assert!(!online.status.success());
+    let stderr = String::from_utf8_lossy(&online.stderr);
+    assert!(stderr.contains("--online runs one mission"), "{stderr}");
+    assert!(!refused.exists() || refused.read_dir().unwrap().next().is_none());
+
+    let out = dir.path().join("merged");
+    let run = Command::new(env!("CARGO_BIN_EXE_echofield"))
+        .arg("run")
+        .args([&a, &b])
+        .arg("--output")
+        .arg(&out)
+        .arg("--allow-suspect")
+        .output()
+        .unwrap();
+    assert!(run.status.success(), "{run:?}");
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let missions = report["missions"].as_array().unwrap();
+    assert_eq!(missions.len(), 2);
+    let poses = std::fs::read_to_string(out.join("poses.csv")).unwrap();
+    let mut lines = poses.lines();
+    assert!(
+        lines.next().unwrap().starts_with("mission,node,"),
+        "{poses}"
+    );
+    for (k, mission) in missions.iter().enumerate() {
+        let nodes = mission["nodes"].as_u64().unwrap() as usize;
+        assert!(nodes > 0);
+        let id = format!("{}", k + 1);
+        let rows = poses
+            .lines()
+            .skip(1)
+            .filter(|l| l.split(',').next() == Some(id.as_str()))
+            .count();
+        assert_eq!(rows, nodes, "mission {id}");
+        let tum = std::fs::read_to_string(out.join(format!("trajectory_{id}_tum.txt"))).unwrap();
+        assert_eq!(tum.lines().count(), nodes, "mission {id}");
+    }
+}
