@@ -153,7 +153,7 @@ pub fn prior_map_of_run(
         .collect();
     let (mut p, mut q) = (Vec::new(), Vec::new());
     for n in &output.nodes {
-        if let Some(t) = echofield::localize::report::truth_at(&mission.ground_truth, n.stamp_s) {
+        if let Some(t) = echofield::matching::ground_truth_at(&mission.ground_truth, n.stamp_s) {
             p.push(n.optimised.translation());
             q.push(t.translation());
         }

@@ -13,8 +13,8 @@
 //! fitted onto theirs (the localised estimates are not fitted).
 
 use echofield::eval::align_se2;
-use echofield::localize::report::truth_at;
 use echofield::localize::{Localized, PriorMap, build_report, localize, outputs::write_files};
+use echofield::matching::ground_truth_at;
 use echofield::slam::{NoProgress, SlamConfig, run_mission};
 use echofield_datasets::sim::{Scenario, simulate_mission};
 use echofield_frontend::localization::{LocalizationConfig, LocalizationState};
@@ -123,7 +123,7 @@ fn errors(localized: &Localized, map: &PriorMap) -> Vec<Option<f64>> {
         .rotations
         .iter()
         .map(|r| {
-            let truth = truth_at(&localized.ground_truth, r.stamp_s)?;
+            let truth = ground_truth_at(&localized.ground_truth, r.stamp_s)?;
             let (x, y) = truth_from_map.transform_xy(r.step.estimate.x(), r.step.estimate.y());
             Some((truth.x() - x).hypot(truth.y() - y))
         })
@@ -174,7 +174,7 @@ fn missions_of_other_seeds_converge_from_an_unknown_start_and_hold_the_ate() {
         // the ground truth (its best case), is what the map removes.
         let (mut dr, mut gt) = (Vec::new(), Vec::new());
         for r in &localized.rotations[converged..] {
-            if let Some(t) = truth_at(&localized.ground_truth, r.stamp_s) {
+            if let Some(t) = ground_truth_at(&localized.ground_truth, r.stamp_s) {
                 dr.push(r.dead_reckoning.translation());
                 gt.push(t.translation());
             }

@@ -14,8 +14,8 @@
 
 use echofield::calibration::{CalibrateSettings, calibrate_mission};
 use echofield::eval::align_se2;
-use echofield::localize::report::truth_at;
 use echofield::localize::{build_report, localize};
+use echofield::matching::ground_truth_at;
 use echofield::slam::{NoProgress, SlamConfig, run_mission};
 use echofield_frontend::localization::{LocalizationConfig, LocalizationState};
 use echofield_frontend::sensors::SweepTiming;
@@ -38,7 +38,7 @@ fn the_second_half_of_real_st_pere_localises_on_the_first_halfs_map() {
     let dgps_nodes = run
         .nodes
         .iter()
-        .filter(|n| truth_at(&first.ground_truth, n.stamp_s).is_some())
+        .filter(|n| ground_truth_at(&first.ground_truth, n.stamp_s).is_some())
         .count();
     assert!(dgps_nodes >= 40, "{dgps_nodes} map nodes with DGPS");
     let localize_config = LocalizationConfig::default();
@@ -57,7 +57,7 @@ fn the_second_half_of_real_st_pere_localises_on_the_first_halfs_map() {
     let pairs: Vec<_> = rotations[converged..]
         .iter()
         .filter_map(|r| {
-            let truth = truth_at(&localized.ground_truth, r.stamp_s)?;
+            let truth = ground_truth_at(&localized.ground_truth, r.stamp_s)?;
             Some((r.step.estimate.translation(), truth.translation()))
         })
         .collect();

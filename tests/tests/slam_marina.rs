@@ -7,25 +7,13 @@
 //! fit), not read from the pipeline's report.
 
 use echofield::eval::{Alignment, ate};
+use echofield::matching::ground_truth_at;
 use echofield::slam::{NoProgress, SlamConfig, SlamOutput, run_mission};
 use echofield_datasets::sim::{Scenario, simulate_mission};
 use echofield_frontend::GroundTruthPose;
 use echofield_graph::io::TrajectoryPose;
-use echofield_graph::{EdgeKind, Se2, wrap_angle};
+use echofield_graph::{EdgeKind, Se2};
 use echofield_tests::ground_truth_odometry_scale;
-
-/// Ground truth at `t` by linear interpolation (angle on the short arc).
-fn truth_at(truth: &[GroundTruthPose], t: f64) -> Option<Se2> {
-    let i = truth.partition_point(|g| g.stamp_s < t);
-    let (a, b) = (truth.get(i.checked_sub(1)?)?, truth.get(i)?);
-    let f = (t - a.stamp_s) / (b.stamp_s - a.stamp_s);
-    let (p, q) = (a.world_from_vehicle, b.world_from_vehicle);
-    Some(Se2::new(
-        p.x() + f * (q.x() - p.x()),
-        p.y() + f * (q.y() - p.y()),
-        p.theta() + f * wrap_angle(q.theta() - p.theta()),
-    ))
-}
 
 /// ATE RMSE of `pose(node)` against the ground truth, and the ground-truth
 /// path length over the nodes' span.
@@ -36,7 +24,7 @@ fn ate_and_distance(
 ) -> (f64, f64) {
     let (mut estimate, mut reference) = (Vec::new(), Vec::new());
     for (i, node) in output.nodes.iter().enumerate() {
-        if let Some(g) = truth_at(truth, node.stamp_s) {
+        if let Some(g) = ground_truth_at(truth, node.stamp_s) {
             estimate.push(TrajectoryPose {
                 stamp_s: node.stamp_s,
                 pose: pose(i),
@@ -111,7 +99,7 @@ fn marina_mission_is_five_times_better_than_dead_reckoning() {
     let truths: Vec<Option<Se2>> = output
         .nodes
         .iter()
-        .map(|n| truth_at(truth, n.stamp_s))
+        .map(|n| ground_truth_at(truth, n.stamp_s))
         .collect();
     let true_scale = ground_truth_odometry_scale(&output.graph, &truths);
     assert!((0.975..0.99).contains(&true_scale), "{true_scale}");
@@ -169,9 +157,9 @@ fn marina_mission_is_five_times_better_than_dead_reckoning() {
             output.nodes[l.from as usize].stamp_s,
             output.nodes[l.to as usize].stamp_s,
         );
-        let truth_rel = truth_at(truth, a)
+        let truth_rel = ground_truth_at(truth, a)
             .unwrap()
-            .between(&truth_at(truth, b).unwrap());
+            .between(&ground_truth_at(truth, b).unwrap());
         let measurement = l.measurement.unwrap();
         let error = truth_rel.between(&measurement);
         let (dt, dr) = (error.translation().norm(), error.theta().abs().to_degrees());
@@ -271,9 +259,9 @@ fn marina_mission_is_five_times_better_than_dead_reckoning() {
             output.nodes[l.from as usize].stamp_s,
             output.nodes[l.to as usize].stamp_s,
         );
-        let error = truth_at(truth, a)
+        let error = ground_truth_at(truth, a)
             .unwrap()
-            .between(&truth_at(truth, b).unwrap())
+            .between(&ground_truth_at(truth, b).unwrap())
             .between(&measurement);
         if error.translation().norm() <= config.evaluation.true_positive_translation_m
             && error.theta().abs().to_degrees() <= config.evaluation.true_positive_rotation_deg

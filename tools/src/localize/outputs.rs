@@ -102,9 +102,11 @@ fn truth_in_map(localized: &Localized, map: &PriorMap) -> Vec<TrajectoryPose> {
         .rotations
         .iter()
         .filter_map(|r| {
-            super::report::truth_at(&localized.ground_truth, r.stamp_s).map(|t| TrajectoryPose {
-                stamp_s: r.stamp_s,
-                pose: map_from_truth.compose(&t),
+            crate::matching::ground_truth_at(&localized.ground_truth, r.stamp_s).map(|t| {
+                TrajectoryPose {
+                    stamp_s: r.stamp_s,
+                    pose: map_from_truth.compose(&t),
+                }
             })
         })
         .collect()

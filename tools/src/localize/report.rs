@@ -14,10 +14,10 @@
 use super::map::PriorMap;
 use super::replay::Localized;
 use crate::eval::align_se2;
+use crate::matching::ground_truth_at;
 use crate::slam::RunInfo;
-use echofield_frontend::GroundTruthPose;
 use echofield_frontend::localization::{LocalizationConfig, LocalizationState};
-use echofield_graph::{Se2, wrap_angle};
+use echofield_graph::Se2;
 use nalgebra::Vector2;
 use serde::Serialize;
 
@@ -138,23 +138,6 @@ pub struct RotationRecord {
     pub build_ms: f64,
 }
 
-/// Ground truth at `t` by linear interpolation (heading on the short arc);
-/// `None` outside its span.
-pub fn truth_at(truth: &[GroundTruthPose], t: f64) -> Option<Se2> {
-    let i = truth.partition_point(|g| g.stamp_s < t);
-    if truth.get(i).is_some_and(|g| g.stamp_s == t) {
-        return Some(truth[i].world_from_vehicle);
-    }
-    let (a, b) = (truth.get(i.checked_sub(1)?)?, truth.get(i)?);
-    let f = (t - a.stamp_s) / (b.stamp_s - a.stamp_s);
-    let (p, q) = (a.world_from_vehicle, b.world_from_vehicle);
-    Some(Se2::new(
-        p.x() + f * (q.x() - p.x()),
-        p.y() + f * (q.y() - p.y()),
-        p.theta() + f * wrap_angle(q.theta() - p.theta()),
-    ))
-}
-
 fn rmse(errors: &[f64]) -> Option<f64> {
     (!errors.is_empty())
         .then(|| (errors.iter().map(|e| e * e).sum::<f64>() / errors.len() as f64).sqrt())
@@ -188,7 +171,7 @@ pub fn build_report(
     let rotations = &localized.rotations;
     let truth: Vec<Option<Se2>> = rotations
         .iter()
-        .map(|r| truth_at(&localized.ground_truth, r.stamp_s))
+        .map(|r| ground_truth_at(&localized.ground_truth, r.stamp_s))
         .collect();
     let per_rotation: Vec<RotationRecord> = rotations
         .iter()
