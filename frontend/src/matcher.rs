@@ -207,54 +207,15 @@ fn match_with(
     config: &MatcherConfig,
     options: MatchOptions,
 ) -> Result<MatchOutcome, FrontendError> {
-    let MatchOptions {
-        search,
-        quality,
-        covariance: covariance_model,
-    } = options;
-    config.validate()?;
-    window.validate()?;
-    if !prior.is_finite() {
-        return Err(FrontendError::input("match", "prior", "pose is not finite"));
-    }
-    if let Some(i) = points
-        .iter()
-        .position(|p| !(p.x.is_finite() && p.y.is_finite()))
-    {
-        return Err(FrontendError::input(
-            format!("scan point {i}"),
-            "x/y",
-            "not finite",
-        ));
-    }
-    if points.len() < config.min_points {
-        return Ok(MatchOutcome::NoMatch {
-            reason: NoMatchReason::TooFewPoints {
-                points: points.len(),
-                required: config.min_points,
-            },
-        });
-    }
-    if image.is_empty() {
-        return Ok(MatchOutcome::NoMatch {
-            reason: NoMatchReason::EmptyImage,
-        });
+    validate_inputs(points, prior, window, config)?;
+    if let Some(reason) = unmatchable(points, image, config) {
+        return Ok(MatchOutcome::NoMatch { reason });
     }
     let points = thin(points, config.max_points);
-    let cell_m = image.cell_size_m();
-    let rho_m = (points.iter().map(|p| p.coords.norm_squared()).sum::<f64>() / points.len() as f64)
-        .sqrt()
-        .max(cell_m);
-    let angle_step_rad = config.angle_step_rad.unwrap_or(cell_m / rho_m);
-    let disc = search::Discretisation {
-        angle_step_rad,
-        angle_steps: steps_within(window.theta_rad, angle_step_rad),
-        cells_x: steps_within(window.x_m, cell_m),
-        cells_y: steps_within(window.y_m, cell_m),
-    };
-    let problem = search::SearchProblem::new(&points, image, prior, &disc);
+    let lattice = Lattice::new(&points, image.cell_size_m(), window, config);
+    let problem = search::SearchProblem::new(&points, image, prior, &lattice.disc);
     let mut stats = search::SearchStats::default();
-    let found = match search {
+    let found = match options.search {
         Search::Local => problem.local_max(&mut stats),
         Search::Global => problem.best_leaf(&mut stats),
     };
@@ -263,32 +224,158 @@ fn match_with(
             reason: NoMatchReason::NoOverlap,
         });
     };
-    let coarse = best.pose(prior, &disc, cell_m);
-    let steps = Vector3::new(cell_m, cell_m, cell_m / rho_m);
-    let bound = window.as_vector().sup(&steps);
-    let lattice_radius = match covariance_model {
+    let coarse = best.pose(prior, &lattice.disc, lattice.cell_m);
+    let mut result = refine(&points, image, &coarse, window, &lattice, config, options);
+    result.stats.search_nodes = stats.nodes;
+    Ok(MatchOutcome::Match(Box::new(result)))
+}
+
+/// Errors for input that no match can use: an invalid config or window,
+/// a non-finite prior or scan point (named by its index).
+fn validate_inputs(
+    points: &[Point2<f64>],
+    prior: &Se2,
+    window: &SearchWindow,
+    config: &MatcherConfig,
+) -> Result<(), FrontendError> {
+    config.validate()?;
+    window.validate()?;
+    if !prior.is_finite() {
+        return Err(FrontendError::input("match", "prior", "pose is not finite"));
+    }
+    match points
+        .iter()
+        .position(|p| !(p.x.is_finite() && p.y.is_finite()))
+    {
+        Some(i) => Err(FrontendError::input(
+            format!("scan point {i}"),
+            "x/y",
+            "not finite",
+        )),
+        None => Ok(()),
+    }
+}
+
+/// Why valid input cannot be matched before any search: too few points,
+/// or an image without echoes.
+fn unmatchable(
+    points: &[Point2<f64>],
+    image: &AcousticImage,
+    config: &MatcherConfig,
+) -> Option<NoMatchReason> {
+    if points.len() < config.min_points {
+        Some(NoMatchReason::TooFewPoints {
+            points: points.len(),
+            required: config.min_points,
+        })
+    } else if image.is_empty() {
+        Some(NoMatchReason::EmptyImage)
+    } else {
+        None
+    }
+}
+
+/// The search lattice of a match: cells of the image in x and y, and an
+/// angle step that moves a point at the scan's RMS range `rho_m` by one
+/// cell (unless the config sets one).
+struct Lattice {
+    disc: search::Discretisation,
+    cell_m: f64,
+    rho_m: f64,
+}
+
+impl Lattice {
+    fn new(
+        points: &[Point2<f64>],
+        cell_m: f64,
+        window: &SearchWindow,
+        config: &MatcherConfig,
+    ) -> Self {
+        let mean_square =
+            points.iter().map(|p| p.coords.norm_squared()).sum::<f64>() / points.len() as f64;
+        let rho_m = mean_square.sqrt().max(cell_m);
+        let angle_step_rad = config.angle_step_rad.unwrap_or(cell_m / rho_m);
+        Self {
+            disc: search::Discretisation {
+                angle_step_rad,
+                angle_steps: steps_within(window.theta_rad, angle_step_rad),
+                cells_x: steps_within(window.x_m, cell_m),
+                cells_y: steps_within(window.y_m, cell_m),
+            },
+            cell_m,
+            rho_m,
+        }
+    }
+
+    /// One lattice step along x, y and θ: the covariance fit's step (its
+    /// angle step is always the one-cell-at-RMS-range one).
+    fn steps(&self) -> Vector3<f64> {
+        Vector3::new(self.cell_m, self.cell_m, self.cell_m / self.rho_m)
+    }
+}
+
+/// Steps 2 and 3 of the module doc from the coarse lattice pose: the
+/// covariance fit and its sub-cell peak, the quality at that peak, then
+/// the pose fit. `stats.search_nodes` is left 0 for the caller.
+fn refine(
+    points: &[Point2<f64>],
+    image: &AcousticImage,
+    coarse: &Se2,
+    window: &SearchWindow,
+    lattice: &Lattice,
+    config: &MatcherConfig,
+    options: MatchOptions,
+) -> MatchResult {
+    let steps = lattice.steps();
+    let lattice_radius = match options.covariance {
         CovarianceModel::Surface => 2,
         CovarianceModel::Inner => 1,
     };
     let fit = covariance::fit_surface(
-        &points,
+        points,
         image.grid(),
-        &coarse,
+        coarse,
         steps.z,
         lattice_radius,
-        &bound,
+        &window.as_vector().sup(&steps),
         config.covariance_scale,
     );
     // The peak of the fitted quadratic gives the sub-cell pose (the
     // lattice pose is quantised to the cells).
-    let v = coarse.to_vector() + fit.peak_offset;
-    let pose = Se2::new(v.x, v.y, v.z);
+    let searched_peak = Se2::from_vector(&(coarse.to_vector() + fit.peak_offset));
     // The quality is read where the searched image peaks, before the pose
     // fit's correction: the gates are set for that image's intensities.
-    let mean = match quality {
-        QualityModel::Samples => mean_score(&points, image, &pose),
-        QualityModel::Raster => raster_score(&points, image, &pose) / points.len() as f64,
+    let mean = match options.quality {
+        QualityModel::Samples => mean_score(points, image, &searched_peak),
+        QualityModel::Raster => raster_score(points, image, &searched_peak) / points.len() as f64,
     };
+    MatchResult {
+        image_from_scan: pose_fit(
+            points,
+            image,
+            &searched_peak,
+            &steps,
+            config.covariance_scale,
+        ),
+        searched_peak,
+        score: mean * points.len() as f64,
+        quality: MatchQuality {
+            mean_intensity: mean,
+            inside_fraction: inside_fraction(points, image, &searched_peak),
+            points: points.len(),
+            surface_fit_residual: fit.relative_fit_residual,
+        },
+        covariance: fit.covariance,
+        coarse: *coarse,
+        stats: MatchStats {
+            angle_step_rad: lattice.disc.angle_step_rad,
+            search_nodes: 0,
+        },
+    }
+}
+
+/// The share of `points` that `pose` puts inside the image's raster.
+fn inside_fraction(points: &[Point2<f64>], image: &AcousticImage, pose: &Se2) -> f64 {
     let inside = points
         .iter()
         .filter(|p| {
@@ -296,25 +383,7 @@ fn match_with(
             image.grid().contains(q.x, q.y)
         })
         .count();
-    let searched_peak = pose;
-    let pose = pose_fit(&points, image, &pose, &steps, config.covariance_scale);
-    Ok(MatchOutcome::Match(Box::new(MatchResult {
-        image_from_scan: pose,
-        searched_peak,
-        score: mean * points.len() as f64,
-        quality: MatchQuality {
-            mean_intensity: mean,
-            inside_fraction: inside as f64 / points.len() as f64,
-            points: points.len(),
-            surface_fit_residual: fit.relative_fit_residual,
-        },
-        covariance: fit.covariance,
-        coarse,
-        stats: MatchStats {
-            angle_step_rad,
-            search_nodes: stats.nodes,
-        },
-    })))
+    inside as f64 / points.len() as f64
 }
 
 /// Half-width of the pose fit's lattice window, in lattice steps: the

@@ -63,11 +63,49 @@ pub fn fit_surface<T: CellValue>(
     let steps = Vector3::new(cell_m, cell_m, angle_step_rad);
     let radius = radius.clamp(1, crate::image::grid::MAX_SHIFT_RADIUS);
     let lattice = Lattice::of_radius(radius);
+    let sampled = sample_lattice(points, grid, pose, angle_step_rad, radius, lattice);
+    let beta = lattice.normal.solve(&sampled.rhs);
+    let inner = lattice.inner_normal.solve(&sampled.inner_rhs);
+    // Hessian in normalised coordinates: s = ... + β4 u1² + ... + β7 u1u2 ...
+    let hn = hessian_n(&beta);
+    let scale = Matrix3::from_diagonal(&steps.map(|s| 1.0 / s));
+    // No direction may have a variance larger than the window.
+    let window_n = window.component_div(&steps).max();
+    let min_information = 1.0 / (window_n * window_n);
+    let covariance = laplace_covariance(&hn, &steps, min_information, tau);
+    SurfaceFit {
+        hessian: scale * hn * scale,
+        covariance: 0.5 * (covariance + covariance.transpose()),
+        relative_fit_residual: relative_fit_residual(lattice, &sampled.scores, &beta),
+        peak_offset: peak_offset_n(&inner, min_information, tau).component_mul(&steps),
+    }
+}
+
+/// The scores of a fit's lattice and the right-hand sides of its two
+/// least-squares fits (whole lattice, inner nodes).
+struct LatticeSamples {
+    scores: Vec<f64>,
+    rhs: SVector<f64, 10>,
+    inner_rhs: SVector<f64, 10>,
+}
+
+/// The raster score of `points` at every node of `lattice` (radius
+/// `radius`) around `pose`, in the lattice's node order.
+fn sample_lattice<T: CellValue>(
+    points: &[Point2<f64>],
+    grid: &Grid<T>,
+    pose: &Se2,
+    angle_step_rad: f64,
+    radius: usize,
+    lattice: &Lattice,
+) -> LatticeSamples {
     let n = 2 * radius + 1;
     let r = radius as i32;
-    let mut rhs = SVector::<f64, 10>::zeros();
-    let mut inner_rhs = rhs;
-    let mut scores = Vec::with_capacity(n * n * n);
+    let mut out = LatticeSamples {
+        scores: Vec::with_capacity(n * n * n),
+        rhs: SVector::zeros(),
+        inner_rhs: SVector::zeros(),
+    };
     let mut sums = vec![0.0; n * n];
     for c in -r..=r {
         let (sin, cos) = (pose.theta() + f64::from(c) * angle_step_rad).sin_cos();
@@ -80,47 +118,60 @@ pub fn fit_surface<T: CellValue>(
         // `sums` is in row-major order of (b, a), as the lattice's nodes of
         // this c.
         for &s in &sums {
-            let node = &lattice.nodes[scores.len()];
-            rhs += node.features * s;
+            let node = &lattice.nodes[out.scores.len()];
+            out.rhs += node.features * s;
             if node.inner {
-                inner_rhs += node.features * s;
+                out.inner_rhs += node.features * s;
             }
-            scores.push(s);
+            out.scores.push(s);
         }
     }
-    let beta = lattice.normal.solve(&rhs);
-    let inner = lattice.inner_normal.solve(&inner_rhs);
+    out
+}
+
+/// RMS residual of the quadratic `beta` over the lattice's scores,
+/// relative to their range (0 for a flat surface).
+fn relative_fit_residual(lattice: &Lattice, scores: &[f64], beta: &SVector<f64, 10>) -> f64 {
     let (mut lo, mut hi, mut sq) = (f64::MAX, f64::MIN, 0.0);
-    for (node, s) in lattice.nodes.iter().zip(&scores) {
-        let r = s - node.features.dot(&beta);
+    for (node, s) in lattice.nodes.iter().zip(scores) {
+        let r = s - node.features.dot(beta);
         sq += r * r;
         lo = lo.min(*s);
         hi = hi.max(*s);
     }
-    let relative_fit_residual = if hi > lo {
+    if hi > lo {
         (sq / scores.len() as f64).sqrt() / (hi - lo)
     } else {
         0.0
-    };
-    // Hessian in normalised coordinates: s = ... + β4 u1² + ... + β7 u1u2 ...
-    let hn = hessian_n(&beta);
-    let scale = Matrix3::from_diagonal(&steps.map(|s| 1.0 / s));
-    let hessian = scale * hn * scale;
-    // Information in normalised coordinates, eigenvalues clamped so that
-    // no direction has a variance larger than the window.
-    let window_n = window.component_div(&steps).max();
-    let min_information = 1.0 / (window_n * window_n);
+    }
+}
+
+/// The Laplace covariance (m², rad²) from the normalised Hessian `hn`:
+/// information `-hn / tau` in normalised coordinates, eigenvalues clamped
+/// at `min_information`, scaled back by the lattice `steps`. Not yet
+/// symmetrised.
+fn laplace_covariance(
+    hn: &Matrix3<f64>,
+    steps: &Vector3<f64>,
+    min_information: f64,
+    tau: f64,
+) -> Matrix3<f64> {
     let info = -hn / tau;
     let eig = info.symmetric_eigen();
     let inv_values = eig.eigenvalues.map(|l| 1.0 / l.max(min_information));
     let cov_n =
         eig.eigenvectors * Matrix3::from_diagonal(&inv_values) * eig.eigenvectors.transpose();
-    let step_diag = Matrix3::from_diagonal(&steps);
-    let covariance = step_diag * cov_n * step_diag;
-    // Peak: u* = (-H)⁻¹ g in normalised coordinates, on the constrained
-    // eigen-directions only (-H = τ · info).
+    let step_diag = Matrix3::from_diagonal(steps);
+    step_diag * cov_n * step_diag
+}
+
+/// The peak of the inner fit `inner`, in lattice steps: `u* = (-H)⁻¹ g`
+/// on the eigen-directions whose information exceeds `min_information`
+/// only (`-H = τ · info`), scaled back to at most one step on the largest
+/// axis.
+fn peak_offset_n(inner: &SVector<f64, 10>, min_information: f64, tau: f64) -> Vector3<f64> {
     let gradient_n = Vector3::new(inner[1], inner[2], inner[3]);
-    let inner_eig = (-hessian_n(&inner)).symmetric_eigen();
+    let inner_eig = (-hessian_n(inner)).symmetric_eigen();
     let mut peak_n = Vector3::zeros();
     for (i, &l) in inner_eig.eigenvalues.iter().enumerate() {
         if l / tau > min_information {
@@ -132,12 +183,7 @@ pub fn fit_surface<T: CellValue>(
     if reach > 1.0 {
         peak_n /= reach;
     }
-    SurfaceFit {
-        hessian,
-        covariance: 0.5 * (covariance + covariance.transpose()),
-        relative_fit_residual,
-        peak_offset: peak_n.component_mul(&steps),
-    }
+    peak_n
 }
 
 /// The sampling lattice of [`fit_surface`] for one radius: every node's

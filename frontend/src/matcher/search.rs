@@ -76,6 +76,54 @@ impl Leaf {
 /// this many of them are new ([`SearchProblem::local_max`]).
 const NINE_LEAVES_MIN_NEW: usize = 3;
 
+/// The leaf scores a local climb has evaluated, by (angle, x, y) index
+/// over the whole window (NaN: not yet).
+struct ClimbMemo {
+    scores: Vec<f32>,
+    nx: usize,
+    ny: usize,
+    angle_steps: i32,
+    cells_x: i32,
+    cells_y: i32,
+}
+
+impl ClimbMemo {
+    fn new(d: &Discretisation) -> Self {
+        let (nx, ny) = ((2 * d.cells_x + 1) as usize, (2 * d.cells_y + 1) as usize);
+        let n_angles = (2 * d.angle_steps + 1) as usize;
+        Self {
+            scores: vec![f32::NAN; n_angles * nx * ny],
+            nx,
+            ny,
+            angle_steps: d.angle_steps,
+            cells_x: d.cells_x,
+            cells_y: d.cells_y,
+        }
+    }
+
+    fn index(&self, angle: i32, dx: i32, dy: i32) -> usize {
+        ((angle + self.angle_steps) as usize * self.nx + (dx + self.cells_x) as usize) * self.ny
+            + (dy + self.cells_y) as usize
+    }
+
+    /// The leaf's score, evaluated on first use.
+    fn score(
+        &mut self,
+        problem: &SearchProblem,
+        stats: &mut SearchStats,
+        angle: i32,
+        dx: i32,
+        dy: i32,
+    ) -> f32 {
+        let k = self.index(angle, dx, dy);
+        if self.scores[k].is_nan() {
+            stats.nodes += 1;
+            self.scores[k] = problem.bound(0, angle, dx, dy);
+        }
+        self.scores[k]
+    }
+}
+
 /// Statistics of one search.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct SearchStats {
@@ -345,78 +393,80 @@ impl<'a> SearchProblem<'a> {
     /// can be (`SearchProblem::nine_leaf_scores`; the saving is in
     /// EXPERIMENTS.md § Speed notes).
     pub fn local_max(&self, stats: &mut SearchStats) -> Option<Leaf> {
-        let d = self.disc;
-        let (nx, ny) = ((2 * d.cells_x + 1) as usize, (2 * d.cells_y + 1) as usize);
-        let n_angles = (2 * d.angle_steps + 1) as usize;
-        let mut memo = vec![f32::NAN; n_angles * nx * ny];
-        let index = |angle: i32, dx: i32, dy: i32| {
-            ((angle + d.angle_steps) as usize * nx + (dx + d.cells_x) as usize) * ny
-                + (dy + d.cells_y) as usize
-        };
-        let score = |memo: &mut [f32], stats: &mut SearchStats, angle: i32, dx: i32, dy: i32| {
-            let slot = &mut memo[index(angle, dx, dy)];
-            if slot.is_nan() {
-                stats.nodes += 1;
-                *slot = self.bound(0, angle, dx, dy);
-            }
-            *slot
-        };
+        let mut memo = ClimbMemo::new(self.disc);
         let mut current = Leaf {
             angle: 0,
             dx: 0,
             dy: 0,
-            score: score(&mut memo, stats, 0, 0, 0),
+            score: memo.score(self, stats, 0, 0, 0),
         };
         loop {
-            // The neighbourhood's leaves not scored yet: a 3 x 3 layer per
-            // angle in one pass over the points where the layer lies in
-            // the window and most of it is new.
-            let (x0, y0) = (current.dx - 1, current.dy - 1);
-            let layer_fits =
-                x0 >= -d.cells_x && x0 + 2 <= d.cells_x && y0 >= -d.cells_y && y0 + 2 <= d.cells_y;
-            for a in current.angle - 1..=current.angle + 1 {
-                if !layer_fits || a.abs() > d.angle_steps {
-                    continue;
-                }
-                let cell = |n: usize| index(a, x0 + (n % 3) as i32, y0 + (n / 3) as i32);
-                let new = (0..9).filter(|&n| memo[cell(n)].is_nan()).count();
-                if new < NINE_LEAVES_MIN_NEW {
-                    continue;
-                }
-                for (n, s) in self.nine_leaf_scores(a, x0, y0).into_iter().enumerate() {
-                    let slot = &mut memo[cell(n)];
-                    if slot.is_nan() {
-                        stats.nodes += 1;
-                        *slot = s;
-                    }
-                }
-            }
-            let mut best = current;
-            for da in -1..=1 {
-                for ex in -1..=1 {
-                    for ey in -1..=1 {
-                        let (a, x, y) = (current.angle + da, current.dx + ex, current.dy + ey);
-                        if a.abs() > d.angle_steps || x.abs() > d.cells_x || y.abs() > d.cells_y {
-                            continue;
-                        }
-                        let s = score(&mut memo, stats, a, x, y);
-                        if s > best.score {
-                            best = Leaf {
-                                angle: a,
-                                dx: x,
-                                dy: y,
-                                score: s,
-                            };
-                        }
-                    }
-                }
-            }
+            self.score_layers_around(&current, &mut memo, stats);
+            let best = self.best_neighbour(&current, &mut memo, stats);
             if best == current {
                 break;
             }
             current = best;
         }
         (current.score > 0.0).then_some(current)
+    }
+
+    /// The neighbourhood's leaves not scored yet: a 3 x 3 layer per angle
+    /// in one pass over the points where the layer lies in the window and
+    /// most of it is new.
+    fn score_layers_around(&self, at: &Leaf, memo: &mut ClimbMemo, stats: &mut SearchStats) {
+        let d = self.disc;
+        let (x0, y0) = (at.dx - 1, at.dy - 1);
+        let layer_fits =
+            x0 >= -d.cells_x && x0 + 2 <= d.cells_x && y0 >= -d.cells_y && y0 + 2 <= d.cells_y;
+        if !layer_fits {
+            return;
+        }
+        for a in at.angle - 1..=at.angle + 1 {
+            if a.abs() > d.angle_steps {
+                continue;
+            }
+            let cells: [usize; 9] =
+                std::array::from_fn(|n| memo.index(a, x0 + (n % 3) as i32, y0 + (n / 3) as i32));
+            let new = cells.iter().filter(|&&k| memo.scores[k].is_nan()).count();
+            if new < NINE_LEAVES_MIN_NEW {
+                continue;
+            }
+            for (k, s) in cells.into_iter().zip(self.nine_leaf_scores(a, x0, y0)) {
+                let slot = &mut memo.scores[k];
+                if slot.is_nan() {
+                    stats.nodes += 1;
+                    *slot = s;
+                }
+            }
+        }
+    }
+
+    /// The best of `at` and its 26 neighbours inside the window (`at` on
+    /// ties).
+    fn best_neighbour(&self, at: &Leaf, memo: &mut ClimbMemo, stats: &mut SearchStats) -> Leaf {
+        let d = self.disc;
+        let mut best = *at;
+        for da in -1..=1 {
+            for ex in -1..=1 {
+                for ey in -1..=1 {
+                    let (a, x, y) = (at.angle + da, at.dx + ex, at.dy + ey);
+                    if a.abs() > d.angle_steps || x.abs() > d.cells_x || y.abs() > d.cells_y {
+                        continue;
+                    }
+                    let s = memo.score(self, stats, a, x, y);
+                    if s > best.score {
+                        best = Leaf {
+                            angle: a,
+                            dx: x,
+                            dy: y,
+                            score: s,
+                        };
+                    }
+                }
+            }
+        }
+        best
     }
 
     /// The nodes of the top level that cover the window.
