@@ -433,7 +433,7 @@ fn fit(pairs: &[(nalgebra::Vector2<f64>, nalgebra::Vector2<f64>)]) -> Option<(Se
     let n = q.len() as f64;
     let centroid = q.iter().sum::<nalgebra::Vector2<f64>>() / n;
     let spread = (q.iter().map(|v| (v - centroid).norm_squared()).sum::<f64>() / n).sqrt();
-    if !(spread >= MIN_FIX_SPREAD_M) {
+    if spread.is_nan() || spread < MIN_FIX_SPREAD_M {
         return None;
     }
     let t = align_se2(&p, &q);
