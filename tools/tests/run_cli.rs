@@ -379,4 +379,13 @@ fn two_missions_write_one_folder_with_a_mission_column() {
         let tum = std::fs::read_to_string(out.join(format!("trajectory_{id}_tum.txt"))).unwrap();
         assert_eq!(tum.lines().count(), nodes, "mission {id}");
     }
+    // `run`'s mosaic and MCAP, for both missions (the library tests of
+    // `slam::multi` check their content).
+    let anchor = report["anchor"].as_u64().unwrap();
+    assert!(anchor == 1 || anchor == 2, "{report}");
+    assert!(image::open(out.join("mosaic.png")).is_ok());
+    // An MCAP file: the magic at both ends.
+    let bytes = std::fs::read(out.join("mission.mcap")).unwrap();
+    let magic = b"\x89MCAP0\r\n";
+    assert!(bytes.starts_with(magic) && bytes.ends_with(magic));
 }

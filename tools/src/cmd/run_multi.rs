@@ -58,8 +58,8 @@ pub fn run(args: Args) -> Result<()> {
             m.loops_accepted,
             m.ate_rmse_m
                 .map_or(String::new(), |a| format!(", ATE alone {a:.3} m")),
-            if m.mission == 1 {
-                ", the map frame".to_string()
+            if m.mission == report.anchor {
+                ", the anchor (its frame is the map frame)".to_string()
             } else if m.merged {
                 m.merged_ate_rmse_m.map_or(", merged".to_string(), |a| {
                     format!(", merged (ATE {a:.3} m)")
@@ -83,7 +83,8 @@ pub fn run(args: Args) -> Result<()> {
         );
     } else {
         println!(
-            "no mission could be placed on the first's map: each mission's own result is in {}",
+            "no mission could be placed on the anchor's map (mission {}): each mission's own result is in {}",
+            report.anchor,
             args.output.display()
         );
     }

@@ -4,14 +4,21 @@
 //! 1. Each mission is run on its own ([`run_mission`]): its own dead
 //!    reckoning, its own chain of sequential matches, its own loops and
 //!    solve, in its own world frame.
-//! 2. Each later mission is placed on the map of the missions placed
+//! 2. The missions are taken in a canonical order that does not depend on
+//!    the order they were given in ([`canonical_order`]): the *anchor*
+//!    first (the mission with the most nodes; ties by name, then by its
+//!    node stamps), whose world frame is the map frame, then the others by
+//!    the same rule. `run A B` and `run B A` therefore build the same
+//!    merged map; the outputs keep the input order (the `mission` column)
+//!    and the report names the anchor.
+//! 3. Each later mission is placed on the map of the missions placed
 //!    before it ([`placement`]): a global search of several probes of its
 //!    scans over the map's likelihood field, accepted only when enough
 //!    probes agree. No shared start pose is assumed; only the heading
 //!    reference (the compass) is shared.
-//! 3. The placed missions become one graph ([`merge`]): cross-mission loop
+//! 4. The placed missions become one graph ([`merge`]): cross-mission loop
 //!    candidates are matched and checked like a run's loops, and the graph
-//!    is solved with only the first mission's first node fixed.
+//!    is solved with only the anchor's first node fixed.
 //!
 //! A mission that cannot be placed is left out of the merged graph and
 //! keeps its own result (in its own frame); the report says so, and a
@@ -24,6 +31,7 @@
 pub mod merge;
 pub mod outputs;
 pub mod placement;
+pub mod search;
 
 use crate::eval::aligned_position_rmse;
 use crate::slam::result::OutliersReport;
@@ -33,18 +41,25 @@ use echofield_backend::SolveSummary;
 use echofield_frontend::sensors::Mission;
 use echofield_graph::Se2;
 use merge::{Merged, merge};
-use placement::{MapFields, Placement, place};
+use placement::{MapFields, Placement, PositionFixes, place, prior_from_fixes};
 use serde::Serialize;
 
 /// What a run of several missions produced.
 pub struct MultiOutput {
     /// Each mission's own run, in input order (its own frame).
     pub runs: Vec<SlamOutput>,
-    /// Each mission's placement search (`None` for the first mission,
-    /// which defines the map frame).
+    /// Each mission's placement search, in input order (`None` for the
+    /// anchor, which defines the map frame).
     pub placements: Vec<Option<Placement>>,
+    /// The missions (input indices) in the order they were placed and
+    /// merged; the first is the anchor ([`canonical_order`]).
+    pub order: Vec<usize>,
     /// The merged graph, when at least one later mission was placed.
     pub merged: Option<Merged>,
+    /// Each mission's sensor mounting, in input order, when known (from
+    /// [`run_missions`]; `None` from [`combine`], which sees only runs):
+    /// for `mission.mcap`.
+    pub mountings: Vec<Option<echofield_frontend::sensors::SensorMounting>>,
     pub report: MultiReport,
 }
 
@@ -68,7 +83,12 @@ pub struct MultiReport {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub run: Option<crate::slam::RunInfo>,
     pub missions: Vec<MissionReport>,
-    /// Whether at least one later mission was merged with the first.
+    /// The anchor (1-based input number, as the `mission` column): its
+    /// world frame is the map frame, its first node is fixed.
+    pub anchor: usize,
+    /// The missions (1-based input numbers) in the order they were placed.
+    pub order: Vec<usize>,
+    /// Whether at least one later mission was merged with the anchor.
     pub merged: bool,
     /// Nodes of the merged graph (0 when nothing was merged).
     pub merged_nodes: usize,
@@ -125,7 +145,7 @@ pub struct Definitions {
 
 const DEFINITIONS: Definitions = Definitions {
     merged_ate_rmse_m: "position RMSE of every merged node (all missions) after one SE(2) fit onto the ground truth at the node stamps, m",
-    placement: "map_from_mission [x_m, y_m, theta_rad]: the mission's world frame in the first mission's; found by probes of several consecutive scans searched over the map's likelihood field, accepted when at least 3 usable probes agree",
+    placement: "map_from_mission [x_m, y_m, theta_rad]: the mission's world frame in the anchor's (the map frame); found by probes of several consecutive scans searched over the map's likelihood field, accepted when at least 3 usable probes agree",
 };
 
 /// Runs every mission and merges them (see the module doc). Errors: a
@@ -143,23 +163,66 @@ pub fn run_missions(
         runs.push(run);
     }
     let mut output = combine(runs, config)?;
+    output.mountings = missions.iter().map(|m| Some(m.mounting.clone())).collect();
     output.report.time_s = start.elapsed().as_secs_f64();
     Ok(output)
 }
 
-/// Steps 2-3 of the module doc on finished `runs` (the first defines the
-/// map frame). Errors: a failed cross-mission match or merged solve.
+/// The order in which `runs` are placed and merged (input indices): by
+/// node count, most first, then by mission name, then by the node stamps
+/// (two missions alike in all three are the same mission twice, and
+/// either order gives the same map). Independent of the input order.
+pub fn canonical_order(runs: &[SlamOutput]) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..runs.len()).collect();
+    order.sort_by(|&a, &b| {
+        let (ra, rb) = (&runs[a], &runs[b]);
+        rb.nodes
+            .len()
+            .cmp(&ra.nodes.len())
+            .then_with(|| ra.mission_name.cmp(&rb.mission_name))
+            .then_with(|| {
+                let stamps = |r: &SlamOutput| r.nodes.iter().map(|n| n.stamp_s).collect::<Vec<_>>();
+                stamps(ra)
+                    .partial_cmp(&stamps(rb))
+                    .unwrap_or(std::cmp::Ordering::Equal)
+            })
+            .then(a.cmp(&b))
+    });
+    order
+}
+
+/// Steps 2-4 of the module doc on finished `runs` (given in any order;
+/// the anchor defines the map frame). Errors: a failed cross-mission match
+/// or merged solve.
 pub fn combine(runs: Vec<SlamOutput>, config: &SlamConfig) -> Result<MultiOutput> {
+    combine_with_fixes(runs, &[], config)
+}
+
+/// [`combine`] with position fixes of the missions (`fixes[m]` of input
+/// mission `m`, all in one common frame; missing or `None`: none): a
+/// mission with fixes, placed on a map of which some missions have fixes
+/// too, is searched first within their prior
+/// ([`placement::prior_from_fixes`]); a placement that disagrees with the
+/// prior beyond its gate is reported with a warning.
+pub fn combine_with_fixes(
+    runs: Vec<SlamOutput>,
+    fixes: &[Option<PositionFixes>],
+    config: &SlamConfig,
+) -> Result<MultiOutput> {
     let start = std::time::Instant::now();
     let mut warnings = Vec::new();
+    let order = canonical_order(&runs);
     let mut transforms: Vec<Option<Se2>> = vec![None; runs.len()];
     let mut placements: Vec<Option<Placement>> = vec![None; runs.len()];
-    if let Some(t) = transforms.first_mut() {
-        *t = Some(Se2::identity());
+    if let Some(&anchor) = order.first() {
+        transforms[anchor] = Some(Se2::identity());
     }
-    for m in 1..runs.len() {
+    for position in 1..order.len() {
+        let m = order[position];
         let own: Vec<Se2> = runs[m].graph.poses();
-        let placed: Vec<(usize, Vec<Se2>)> = (0..m)
+        let placed: Vec<(usize, Vec<Se2>)> = order[..position]
+            .iter()
+            .copied()
             .filter_map(|i| {
                 transforms[i].map(|t| {
                     (
@@ -174,7 +237,45 @@ pub fn combine(runs: Vec<SlamOutput>, config: &SlamConfig) -> Result<MultiOutput
             .map(|(i, p)| (&runs[*i], p.as_slice()))
             .collect();
         let fields = MapFields::build(&map_runs).context("the map for the placement")?;
-        let placement = place(&fields, &runs[m], &own);
+        let fixes_of = |i: usize| fixes.get(i).and_then(Option::as_ref);
+        let prior = fixes_of(m).and_then(|own_fixes| {
+            let map_fixes: Vec<(&SlamOutput, &[Se2], &PositionFixes)> = placed
+                .iter()
+                .filter_map(|(i, p)| fixes_of(*i).map(|f| (&runs[*i], p.as_slice(), f)))
+                .collect();
+            prior_from_fixes(&map_fixes, &runs[m], &own, own_fixes)
+        });
+        if fixes_of(m).is_some() && prior.is_none() {
+            let message = format!(
+                "mission {} ({}): its position fixes give no prior (too few fixes at its nodes or at the map's, or too little spread): searched without",
+                m + 1,
+                runs[m].mission_name
+            );
+            tracing::warn!("{message}");
+            warnings.push(message);
+        }
+        let placement = place(&fields, &runs[m], &own, prior.as_ref());
+        if let Some(check) = &placement.prior
+            && !check.consistent
+        {
+            let message = format!(
+                "mission {} ({}): the placement from the scans {} the prior from position fixes (sigma {:.1} m){}: the fixes were not trusted",
+                m + 1,
+                runs[m].mission_name,
+                if placement.map_from_mission.is_some() {
+                    "disagrees with"
+                } else {
+                    "found nothing within"
+                },
+                check.prior.sigma_m,
+                check.offset_m.map_or(String::new(), |d| format!(
+                    ", off by {d:.1} m ({:.1} sigma)",
+                    d / check.prior.sigma_m
+                ))
+            );
+            tracing::warn!("{message}");
+            warnings.push(message);
+        }
         if placement.map_from_mission.is_none() {
             let message = format!(
                 "mission {} ({}) could not be placed on the map of the missions before it ({} of {} probes agree, {} needed): it is not merged; its own result is written in its own frame",
@@ -190,8 +291,8 @@ pub fn combine(runs: Vec<SlamOutput>, config: &SlamConfig) -> Result<MultiOutput
         transforms[m] = placement.map_from_mission;
         placements[m] = Some(placement);
     }
-    let merged = if transforms.iter().skip(1).any(Option::is_some) {
-        let merged = merge(&runs, &transforms, config)?;
+    let merged = if order.iter().skip(1).any(|&m| transforms[m].is_some()) {
+        let merged = merge(&runs, &transforms, &order, config)?;
         if merged.accepted_cross() == 0 {
             let message = "the missions were placed but no cross-mission loop was accepted: the merged graph rests on the placement alone".to_string();
             tracing::warn!("{message}");
@@ -201,13 +302,13 @@ pub fn combine(runs: Vec<SlamOutput>, config: &SlamConfig) -> Result<MultiOutput
     } else {
         None
     };
+    let runs_len = runs.len();
     let mut output = MultiOutput {
-        runs,
-        placements,
-        merged,
         report: MultiReport {
             run: None,
             missions: Vec::new(),
+            anchor: order.first().map_or(0, |a| a + 1),
+            order: order.iter().map(|m| m + 1).collect(),
             merged: false,
             merged_nodes: 0,
             cross_loop_candidates: 0,
@@ -219,6 +320,11 @@ pub fn combine(runs: Vec<SlamOutput>, config: &SlamConfig) -> Result<MultiOutput
             warnings,
             definitions: DEFINITIONS,
         },
+        runs,
+        placements,
+        mountings: vec![None; runs_len],
+        order,
+        merged,
     };
     fill_report(&mut output);
     output.report.time_s = start.elapsed().as_secs_f64();
@@ -239,6 +345,9 @@ fn fill_report(output: &mut MultiOutput) {
     let mut missions = Vec::new();
     let (mut all_estimate, mut all_truth) = (Vec::new(), Vec::new());
     let mut every_has_truth = true;
+    // The joint figure sums the missions in the merge order, so that it
+    // does not depend on the input order either.
+    let mut joint: Vec<(usize, Vec<Se2>, Vec<Se2>)> = Vec::new();
     for (m, run) in output.runs.iter().enumerate() {
         let member = output
             .merged
@@ -250,9 +359,9 @@ fn fill_report(output: &mut MultiOutput) {
             if e.len() < 2 {
                 every_has_truth = false;
             }
-            all_estimate.extend(e.iter().copied());
-            all_truth.extend(t.iter().copied());
-            (e.len() >= 2).then(|| aligned_position_rmse(&e, &t))
+            let ate = (e.len() >= 2).then(|| aligned_position_rmse(&e, &t));
+            joint.push((m, e, t));
+            ate
         } else {
             None
         };
@@ -268,6 +377,11 @@ fn fill_report(output: &mut MultiOutput) {
             health: format!("{:?}", run.report.health.verdict).to_lowercase(),
             placement: output.placements[m].clone(),
         });
+    }
+    joint.sort_by_key(|(m, ..)| output.order.iter().position(|o| o == m));
+    for (_, e, t) in joint {
+        all_estimate.extend(e);
+        all_truth.extend(t);
     }
     let report = &mut output.report;
     report.missions = missions;

@@ -3,12 +3,19 @@
 //! priors) with node ids offset, cross-mission loop candidates matched and
 //! checked as the run's loops are, and one robust solve.
 //!
-//! Frames: the merged graph is in the first mission's world frame (its
-//! node 0 stays fixed, as in a single run). A later mission's nodes start
+//! Frames: the merged graph is in the anchor's world frame (the first
+//! mission of the order given, [`super::canonical_order`]; its node 0
+//! stays fixed, as in a single run). A later mission's nodes start
 //! at `map_from_mission ⊕ world_from_node` (its placement, see
 //! [`super::placement`]) and are free: only the cross-mission loops tie
-//! them to the first mission. Its heading priors are turned by the
-//! placement's heading with it.
+//! them to the anchor. Its heading priors (the compass headings of its
+//! dead reckoning) keep their heading: every mission's dead reckoning
+//! takes its heading from the compass, which the missions share, so a
+//! prior says the same thing in the map frame as in the mission's own.
+//! The placement's heading is only the starting value of the solve, which
+//! takes the missions' relative heading from these priors and the
+//! cross-mission loops together (turning the priors by it would make the
+//! placement's heading a measurement it is not).
 //!
 //! Cross-mission candidates: each node of a later mission against the
 //! [`CROSS_PER_NODE`] nearest nodes of earlier placed missions within
@@ -42,6 +49,11 @@ pub const CROSS_PER_NODE: usize = 2;
 /// Largest distance between two nodes under the placement for a
 /// cross-mission candidate, m.
 pub const CROSS_RADIUS_M: f64 = 10.0;
+/// ... or, when larger, this share of the smaller of the two nodes'
+/// footprints: two nodes this far apart still see half of what either
+/// sees, so the candidates spread over the whole overlap of the missions
+/// rather than only where their tracks cross.
+pub const CROSS_FOOTPRINT_FRACTION: f64 = 0.5;
 /// Standard deviation of a placement, per axis (m, m, rad), as the prior
 /// covariance of the cross-mission candidates; their window is
 /// `loops.n_sigma` of it, clamped as the run's loop windows.
@@ -110,11 +122,14 @@ fn node_data(run: &SlamOutput) -> Vec<NodeData> {
 }
 
 /// Merges the `runs` whose `placements` (`map_from_mission`) are known
-/// into one graph and solves it (see the module doc). The first run must
-/// be placed (at the identity). Errors: a failed match or solve.
+/// into one graph and solves it (see the module doc), taking them in
+/// `order` (input indices; the first, the anchor, must be placed at the
+/// identity): node ids, candidates and the solve follow `order`, not the
+/// input order. Errors: a failed match or solve.
 pub fn merge(
     runs: &[SlamOutput],
     placements: &[Option<Se2>],
+    order: &[usize],
     config: &SlamConfig,
 ) -> Result<Merged> {
     let mut members = Vec::new();
@@ -122,7 +137,8 @@ pub fn merge(
     let mut nodes: Vec<NodeData> = Vec::new();
     let mut placed_poses: Vec<Se2> = Vec::new();
     let mut mission_of: Vec<(usize, usize)> = Vec::new();
-    for (m, (run, placement)) in runs.iter().zip(placements).enumerate() {
+    for &m in order {
+        let (run, placement) = (&runs[m], &placements[m]);
         let Some(map_from_mission) = placement else {
             continue;
         };
@@ -225,7 +241,9 @@ fn add_run(
         edge.from += offset;
         edge.to += offset;
         if edge.kind == EdgeKind::Prior {
-            edge.measurement = map_from_mission.compose(&edge.measurement);
+            // Moved with the mission, heading kept: see the module doc.
+            let moved = map_from_mission.compose(&edge.measurement);
+            edge.measurement = Se2::new(moved.x(), moved.y(), edge.measurement.theta());
         }
         graph.add_edge(edge)?;
     }
@@ -265,7 +283,11 @@ fn cross_candidates(
                     let d = (poses[j].x() - poses[to].x()).hypot(poses[j].y() - poses[to].y());
                     (d, j)
                 })
-                .filter(|(d, _)| *d <= CROSS_RADIUS_M)
+                .filter(|&(d, j)| {
+                    d <= CROSS_RADIUS_M.max(
+                        CROSS_FOOTPRINT_FRACTION * nodes[j].footprint_m.min(nodes[to].footprint_m),
+                    )
+                })
                 .collect();
             near.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
             for &(_, from) in near.iter().take(CROSS_PER_NODE) {

@@ -1,14 +1,18 @@
 //! The output folder of a run of several missions. Missions are numbered
-//! from 1 in input order (the `mission` column and the file names).
+//! from 1 in input order (the `mission` column and the file names); the
+//! map frame is the anchor's world frame (`report.json` → `anchor`).
 //!
 //! | file | content |
 //! |---|---|
 //! | `config.toml` | the effective configuration (the first mission's) |
-//! | `trajectory_M_tum.txt` | mission M's node poses, TUM: in the map frame (the first mission's world frame) when merged, else in its own frame |
+//! | `trajectory_M_tum.txt` | mission M's node poses, TUM: in the map frame when merged, else in its own frame |
 //! | `ground_truth_M_tum.txt` | mission M's ground truth at its node stamps (its own frame), when it has any |
 //! | `poses.csv` | every node: `mission,node,stamp_s,x_m,y_m,theta_rad,merged` |
 //! | `loops.csv` | every loop candidate, each mission's own and the cross-mission ones: `mission_from,node_from,mission_to,node_to,cross,accepted,rejected_by,x_m,y_m,theta_rad` (the measurement `from_from_to`, empty when none) |
+//! | `graph.g2o` | the merged pose graph (mission M's node k has id `first_M + k`, `first_M` from the order of `report.json` → `order`; `FIX` last), when something was merged; else none |
 //! | `trajectory.png` | the missions' trajectories, one colour each, with their ground truth (fitted together onto the merged nodes) dashed |
+//! | `mosaic.png`, `mosaic.pgw` | the acoustic mosaic of every merged mission's nodes at their merged poses (map frame; the anchor's alone when nothing was merged) and its world file |
+//! | `mission.mcap` | the merged results for Foxglove, as `run`'s (see [`write_mcap`]): one set of topics per mission, `/mission_M/...`, in frame `world` (the map frame) for merged missions and `world_M` for a mission left in its own frame |
 //! | `report.json` | [`super::MultiReport`] |
 //!
 //! Every file is written atomically into the fresh output folder; the
@@ -18,9 +22,15 @@ use super::MultiOutput;
 use crate::eval::align_se2;
 use crate::output::write_atomic;
 use crate::plots::trajectory::{GROUND_TRUTH, OPTIMISED, Track, trajectory_png};
-use anyhow::Result;
+use crate::slam::outputs::foxglove::{FRAME_WORLD, image_png};
+use crate::slam::outputs::mosaic::{MosaicCanvas, MosaicConfig, mosaic_png, placeable, world_file};
+use anyhow::{Context, Result};
+use echofield_datasets::mcap::MissionWriter;
+use echofield_datasets::mcap::foxglove::{GridCells, LineSegment, ScanPoint};
+use echofield_frontend::image::Grid;
+use echofield_frontend::sensors::SensorMounting;
 use echofield_graph::Se2;
-use echofield_graph::io::{TrajectoryPose, write_tum};
+use echofield_graph::io::{TrajectoryPose, write_g2o, write_tum};
 use plotters::prelude::RGBColor;
 use std::fmt::Write as _;
 use std::path::Path;
@@ -45,7 +55,11 @@ pub fn folder_files() -> Vec<String> {
         "config.toml",
         "poses.csv",
         "loops.csv",
+        "graph.g2o",
         "trajectory.png",
+        "mosaic.png",
+        "mosaic.pgw",
+        "mission.mcap",
         "report.json",
     ]
     .iter()
@@ -101,8 +115,28 @@ pub fn write_files(dir: &Path, output: &MultiOutput) -> Result<()> {
     write_atomic(&dir.join("loops.csv"), |w| {
         Ok(w.write_all(loops_csv(output).as_bytes())?)
     })?;
+    if let Some(merged) = &output.merged {
+        write_atomic(&dir.join("graph.g2o"), |w| Ok(write_g2o(&merged.graph, w)?))?;
+    }
     let png = trajectory_png(&tracks(output), &caption(output), PLOT_SIZE_PX)?;
     write_atomic(&dir.join("trajectory.png"), |w| Ok(w.write_all(&png)?))?;
+    let mosaic = mosaic(output).context("the merged mosaic")?;
+    if let Some(grid) = &mosaic {
+        let track: Vec<(f64, f64)> = output
+            .order
+            .iter()
+            .filter(|&&m| in_map(output, m))
+            .flat_map(|&m| output.poses(m))
+            .map(|p| (p.x(), p.y()))
+            .collect();
+        let png = mosaic_png(grid, &track)?;
+        write_atomic(&dir.join("mosaic.png"), |w| Ok(w.write_all(&png)?))?;
+        write_atomic(&dir.join("mosaic.pgw"), |w| {
+            Ok(w.write_all(world_file(grid).as_bytes())?)
+        })?;
+    }
+    write_mcap(&dir.join("mission.mcap"), output, mosaic.as_ref())
+        .context("while writing mission.mcap")?;
     write_atomic(&dir.join("report.json"), |w| {
         serde_json::to_writer_pretty(&mut *w, &output.report)?;
         Ok(w.write_all(b"\n")?)
@@ -238,4 +272,204 @@ fn tracks(output: &MultiOutput) -> Vec<Track> {
         }
     }
     tracks
+}
+
+/// Whether mission `m`'s poses are in the map frame: a member of the
+/// merged graph, or the anchor.
+fn in_map(output: &MultiOutput, m: usize) -> bool {
+    output.order.first() == Some(&m) || output.report.missions.get(m).is_some_and(|r| r.merged)
+}
+
+/// The mosaic of every node image of the missions in the map frame
+/// ([`in_map`]) at their poses there, blended as `run`'s mosaic; `None`
+/// when no node has an image. Errors: an image that cannot be rebuilt.
+fn mosaic(output: &MultiOutput) -> Result<Option<Grid>> {
+    let mut placed: Vec<(usize, usize, Se2)> = Vec::new();
+    for &m in output.order.iter().filter(|&&m| in_map(output, m)) {
+        let run = &output.runs[m];
+        for (k, pose) in output.poses(m).into_iter().enumerate() {
+            if let Some(image) = run.images.get(k)
+                && !image.is_empty()
+                && placeable(&image.extent(), &pose)
+            {
+                placed.push((m, k, pose));
+            }
+        }
+    }
+    if placed.is_empty() {
+        return Ok(None);
+    }
+    let mut canvas = MosaicCanvas::new(
+        placed
+            .iter()
+            .map(|&(m, k, pose)| (output.runs[m].images[k].extent(), pose)),
+        &MosaicConfig::default(),
+    )?;
+    for &(m, k, pose) in &placed {
+        let grid = output.runs[m].images[k]
+            .grid_once()
+            .with_context(|| format!("acoustic image of mission {} node {k}", m + 1))?;
+        canvas.place(&grid, &pose);
+    }
+    Ok(Some(canvas.finish()))
+}
+
+/// Frame of mission `m`'s poses: [`FRAME_WORLD`] (the map frame) when it
+/// is in the map, else `world_M` (its own world frame).
+fn frame_of(output: &MultiOutput, m: usize) -> String {
+    if in_map(output, m) {
+        FRAME_WORLD.to_string()
+    } else {
+        format!("world_{}", m + 1)
+    }
+}
+
+/// `mission.mcap` of a run of several missions: `run`'s topics
+/// ([`crate::slam::outputs::foxglove`]) once per mission M under
+/// `/mission_M` (`/mission_M/slam/trajectory`, `/mission_M/slam/pose`,
+/// `/mission_M/slam/scan`, `/mission_M/slam/acoustic_image`, its own loops
+/// on `/mission_M/slam/loops/accepted`, `/tf` `world` → `vehicle_M`), the
+/// merged mosaic on `/slam/mosaic` and the accepted cross-mission loops
+/// on `/slam/loops/cross`, both at the anchor's first stamp. The file's
+/// name (its `echofield.mission` metadata) lists the missions by number;
+/// its mounting is the first mission's when known
+/// ([`MultiOutput::mountings`]), else the default. Atomic, as every file
+/// of the folder. Errors: a write failing, naming the topic's record.
+pub fn write_mcap(
+    path: &std::path::Path,
+    output: &MultiOutput,
+    mosaic: Option<&Grid>,
+) -> Result<()> {
+    let names: Vec<String> = output
+        .runs
+        .iter()
+        .enumerate()
+        .map(|(m, r)| format!("{}: {}", m + 1, r.mission_name))
+        .collect();
+    let default_mounting = SensorMounting::default();
+    let mounting = output
+        .mountings
+        .first()
+        .and_then(Option::as_ref)
+        .unwrap_or(&default_mounting);
+    let mut w = MissionWriter::create(
+        path,
+        &format!("{} (echofield merged results)", names.join(", ")),
+        mounting,
+    )?;
+    let t0 = output
+        .order
+        .first()
+        .and_then(|&a| output.runs[a].nodes.first())
+        .map_or(0.0, |n| n.stamp_s);
+    if let Some(grid) = mosaic.filter(|g| g.width() > 0 && g.height() > 0) {
+        let (x0, y0) = grid.origin_m();
+        let cells: Vec<u8> = grid
+            .values()
+            .iter()
+            .map(|&v| (v.clamp(0.0, 1.0) * 255.0) as u8)
+            .collect();
+        let cells = GridCells {
+            origin: Se2::new(x0, y0, 0.0),
+            column_count: grid.width(),
+            cell_size_m: grid.cell_size_m(),
+            cells: &cells,
+        };
+        w.write_grid("/slam/mosaic", t0, FRAME_WORLD, &cells)?;
+    }
+    let all_poses: Vec<Vec<Se2>> = (0..output.runs.len()).map(|m| output.poses(m)).collect();
+    if let Some(merged) = &output.merged {
+        let segments: Vec<LineSegment> = merged
+            .cross_loops
+            .iter()
+            .filter(|l| l.record.accepted)
+            .filter_map(|l| {
+                let a = all_poses.get(l.from_mission)?.get(l.from_node)?;
+                let b = all_poses.get(l.to_mission)?.get(l.to_node)?;
+                Some(LineSegment {
+                    from_m: (a.x(), a.y()),
+                    to_m: (b.x(), b.y()),
+                    rgba: [0.9, 0.2, 0.9, 0.9],
+                })
+            })
+            .collect();
+        w.write_scene_lines(
+            "/slam/loops/cross",
+            t0,
+            FRAME_WORLD,
+            "cross",
+            2.0,
+            &segments,
+        )?;
+    }
+    let mut pixels = Vec::new();
+    for (m, (run, poses)) in output.runs.iter().zip(&all_poses).enumerate() {
+        let prefix = format!("/mission_{}", m + 1);
+        let frame = frame_of(output, m);
+        let vehicle = format!("vehicle_{}", m + 1);
+        let Some(first) = run.nodes.first() else {
+            continue;
+        };
+        w.write_poses_in_frame(
+            &format!("{prefix}/slam/trajectory"),
+            first.stamp_s,
+            &frame,
+            poses,
+        )?;
+        let own: Vec<LineSegment> = run
+            .loops
+            .iter()
+            .filter(|r| r.accepted)
+            .filter_map(|r| {
+                let a = poses.get(usize::try_from(r.from).ok()?)?;
+                let b = poses.get(usize::try_from(r.to).ok()?)?;
+                Some(LineSegment {
+                    from_m: (a.x(), a.y()),
+                    to_m: (b.x(), b.y()),
+                    rgba: [0.2, 0.4, 0.9, 0.9],
+                })
+            })
+            .collect();
+        w.write_scene_lines(
+            &format!("{prefix}/slam/loops/accepted"),
+            first.stamp_s,
+            &frame,
+            &format!("{prefix}/loops"),
+            2.0,
+            &own,
+        )?;
+        for (k, (node, pose)) in run.nodes.iter().zip(poses).enumerate() {
+            let t = node.stamp_s;
+            w.write_frame_transform("/tf", t, &frame, &vehicle, pose)?;
+            w.write_pose_in_frame(&format!("{prefix}/slam/pose"), t, &frame, pose)?;
+            if let Some(scan) = run.scans.get(k).filter(|s| !s.is_empty()) {
+                let points: Vec<ScanPoint> = scan
+                    .points
+                    .iter()
+                    .zip(&scan.intensities)
+                    .map(|(p, &i)| ScanPoint {
+                        x_m: p.x,
+                        y_m: p.y,
+                        intensity: i,
+                    })
+                    .collect();
+                w.write_point_cloud(&format!("{prefix}/slam/scan"), t, &frame, pose, &points)?;
+            }
+            if let Some(image) = run.images.get(k).filter(|i| !i.is_empty()) {
+                let grid = image
+                    .grid_once()
+                    .with_context(|| format!("acoustic image of mission {} node {k}", m + 1))?;
+                let png = image_png(&grid, &mut pixels)?;
+                w.write_compressed_image(
+                    &format!("{prefix}/slam/acoustic_image"),
+                    t,
+                    &vehicle,
+                    "png",
+                    &png,
+                )?;
+            }
+        }
+    }
+    w.complete()?.persist()?;
+    Ok(())
 }

@@ -11,11 +11,21 @@
 //! than one, which makes a wrong place much less likely to fit).
 //!
 //! Each probe is searched over every covered cell of a coarse, widely
-//! smoothed field on a [`COARSE_STEP_M`] grid and over headings within
+//! smoothed field (cells of [`COARSE_CELL_M`]) and over headings within
 //! [`HEADING_WINDOW_RAD`] of the mission's own: the heading is the one
 //! thing two missions of a vehicle share, since both dead reckonings take
-//! it from the compass, whereas no start position is assumed. The best
-//! coarse peaks are refined by a local climb on a fine field. Each probe
+//! it from the compass, whereas no start position is assumed. The search
+//! is a branch and bound over a max-pooled pyramid of the coarse field
+//! ([`super::search`]): it returns exactly the best poses of the
+//! exhaustive grid search while scoring a small part of them. The best
+//! coarse peaks are refined by a local climb on a fine field.
+//!
+//! With a [`PlacementPrior`] (from position fixes of both missions in one
+//! frame, [`prior_from_fixes`]) each probe is searched only within
+//! [`PRIOR_GATE_SIGMAS`] of where the prior puts it. When the probes do not
+//! agree there, the prior is not trusted: the global search runs as
+//! without it, and a placement found far from the prior is reported as
+//! such ([`PriorCheck`]). Each probe
 //! then implies one `map_from_mission`; the placement is accepted only
 //! when at least [`MIN_AGREEING`] probes agree with one another (each
 //! predicts the others' map poses within [`AGREE_M`] and [`AGREE_RAD`]),
@@ -23,6 +33,8 @@
 //! the map never saw fit anywhere or nowhere and do not agree by chance;
 //! a mission in another place gives no agreeing set and no placement.
 
+use super::search::{CoarseIndex, Region};
+use crate::eval::align_se2;
 use crate::slam::SlamOutput;
 use crate::slam::outputs::mosaic::{MosaicConfig, build_mosaic};
 use anyhow::{Result, bail};
@@ -46,10 +58,9 @@ const FINE_POINTS: usize = 1500;
 /// pose scores near its peak from the nearest grid pose.
 const COARSE_CELL_M: f64 = 0.5;
 const COARSE_SMOOTHING_M: f64 = 1.0;
-/// Translation step of the coarse grid, m.
-pub const COARSE_STEP_M: f64 = 1.0;
 /// Heading step of the coarse grid, rad (2°: 0.7 m at 20 m range, within
-/// the coarse field's smoothing).
+/// the coarse field's smoothing). The translation step is one coarse
+/// cell.
 const COARSE_STEP_RAD: f64 = 2.0 * PI / 180.0;
 /// Headings searched on either side of the mission's own, rad. Both
 /// dead reckonings take their heading from the compass, so the missions'
@@ -100,7 +111,41 @@ pub struct ProbeResult {
     pub usable: bool,
     /// In the agreeing set the placement was made from.
     pub agrees: bool,
+    /// Bounds and scores the coarse search evaluated (of the last search,
+    /// when the prior's was followed by the global one).
+    pub coarse_evaluations: usize,
 }
+
+/// A prior on `map_from_mission`, e.g. from position fixes
+/// ([`prior_from_fixes`]).
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct PlacementPrior {
+    #[serde(serialize_with = "se2_array")]
+    pub map_from_mission: Se2,
+    /// Standard deviation of the position it gives each of the mission's
+    /// nodes, m (> 0).
+    pub sigma_m: f64,
+    /// Standard deviation of its heading, rad (> 0).
+    pub sigma_rad: f64,
+}
+
+/// A prior's fate.
+#[derive(Clone, Debug, Serialize)]
+pub struct PriorCheck {
+    pub prior: PlacementPrior,
+    /// Whether the placement was found within the prior's bounds (else
+    /// by the global search, after the probes did not agree there).
+    pub bounded: bool,
+    /// Mean distance between the placement and the prior at the mission's
+    /// nodes, m, and in the prior's sigmas (`None`: not placed).
+    pub offset_m: Option<f64>,
+    pub offset_sigmas: Option<f64>,
+    /// The placement lies within [`PRIOR_GATE_SIGMAS`] of the prior.
+    pub consistent: bool,
+}
+
+/// A prior bounds each probe's search to this many of its sigmas.
+pub const PRIOR_GATE_SIGMAS: f64 = 3.0;
 
 /// The outcome of the search for one mission.
 #[derive(Clone, Debug, Serialize)]
@@ -112,6 +157,10 @@ pub struct Placement {
     pub probes: Vec<ProbeResult>,
     /// Probes in the agreeing set.
     pub agreeing: usize,
+    /// The prior it was searched with, and whether the placement agrees
+    /// with it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub prior: Option<PriorCheck>,
     /// Wall time, s.
     pub time_s: f64,
 }
@@ -127,7 +176,7 @@ fn opt_se2_array<S: serde::Serializer>(p: &Option<Se2>, s: S) -> Result<S::Ok, S
 /// The map: a coarse field for the global search, a fine one for the
 /// refinement.
 pub struct MapFields {
-    coarse: LikelihoodField,
+    coarse: CoarseIndex,
     fine: LikelihoodField,
 }
 
@@ -170,7 +219,7 @@ impl MapFields {
             Ok(LikelihoodField::new(mosaic, &footprints, smoothing_m)?)
         };
         Ok(Self {
-            coarse: field(COARSE_CELL_M, COARSE_SMOOTHING_M)?,
+            coarse: CoarseIndex::new(&field(COARSE_CELL_M, COARSE_SMOOTHING_M)?),
             fine: field(FINE_CELL_M, FINE_SMOOTHING_M)?,
         })
     }
@@ -230,13 +279,84 @@ fn thinned(points: &[Point2<f64>], max: usize) -> Vec<Point2<f64>> {
 }
 
 /// Places the mission of `run` (its nodes at `own`, its own frame) on
-/// `map` (see the module doc).
-pub fn place(map: &MapFields, run: &SlamOutput, own: &[Se2]) -> Placement {
+/// `map` (see the module doc), within the bounds of `prior` first when
+/// there is one.
+pub fn place(
+    map: &MapFields,
+    run: &SlamOutput,
+    own: &[Se2],
+    prior: Option<&PlacementPrior>,
+) -> Placement {
     let start = std::time::Instant::now();
     let probes = probes(run, own);
+    let global = |node: &Se2| Region {
+        disc: None,
+        centre_rad: node.theta(),
+        step_rad: COARSE_STEP_RAD,
+        steps: (HEADING_WINDOW_RAD / COARSE_STEP_RAD).round() as i64,
+    };
+    let mut placement = None;
+    if let Some(prior) = prior {
+        let bounded = |node: &Se2| {
+            let predicted = prior.map_from_mission.compose(node);
+            let window = (PRIOR_GATE_SIGMAS * prior.sigma_rad).min(HEADING_WINDOW_RAD);
+            Region {
+                disc: Some((
+                    predicted.x(),
+                    predicted.y(),
+                    PRIOR_GATE_SIGMAS * prior.sigma_m + map.coarse.cell_m(),
+                )),
+                centre_rad: predicted.theta(),
+                step_rad: COARSE_STEP_RAD,
+                steps: (window / COARSE_STEP_RAD).ceil().max(1.0) as i64,
+            }
+        };
+        let (map_from_mission, results, agreeing) = search(map, &probes, own, bounded);
+        if map_from_mission.is_some() {
+            placement = Some((map_from_mission, results, agreeing, true));
+        }
+    }
+    let (map_from_mission, probes, agreeing, bounded) = placement.unwrap_or_else(|| {
+        let (t, r, a) = search(map, &probes, own, global);
+        (t, r, a, false)
+    });
+    let prior = prior.map(|prior| {
+        let offset_m = map_from_mission.map(|t| {
+            own.iter()
+                .map(|p| distance_m(&t.compose(p), &prior.map_from_mission.compose(p)))
+                .sum::<f64>()
+                / own.len().max(1) as f64
+        });
+        let offset_sigmas = offset_m.map(|d| d / prior.sigma_m);
+        PriorCheck {
+            prior: *prior,
+            bounded,
+            offset_m,
+            offset_sigmas,
+            consistent: offset_sigmas.is_some_and(|s| s <= PRIOR_GATE_SIGMAS),
+        }
+    });
+    Placement {
+        map_from_mission,
+        agreeing,
+        probes,
+        prior,
+        time_s: start.elapsed().as_secs_f64(),
+    }
+}
+
+/// Searches every probe over its `region` (a function of its middle
+/// node's own pose), then the agreeing set and the joint refinement:
+/// `(map_from_mission, probe results, agreeing probes)`.
+fn search(
+    map: &MapFields,
+    probes: &[Probe],
+    own: &[Se2],
+    region: impl Fn(&Se2) -> Region + Sync,
+) -> (Option<Se2>, Vec<ProbeResult>, usize) {
     let mut results: Vec<ProbeResult> = probes
         .par_iter()
-        .map(|p| search_probe(map, p, &own[p.node]))
+        .map(|p| search_probe(map, p, &own[p.node], &region(&own[p.node])))
         .collect();
     let agreeing = agreeing_set(&results, own);
     let map_from_mission = if agreeing.len() >= MIN_AGREEING {
@@ -253,55 +373,132 @@ pub fn place(map: &MapFields, run: &SlamOutput, own: &[Se2]) -> Placement {
     } else {
         None
     };
-    Placement {
-        map_from_mission,
-        agreeing: agreeing.len(),
-        probes: results,
-        time_s: start.elapsed().as_secs_f64(),
-    }
+    (map_from_mission, results, agreeing.len())
 }
 
-/// The global search of one probe: coarse grid, then the best peaks
-/// refined on the fine field.
-fn search_probe(map: &MapFields, probe: &Probe, world_from_node: &Se2) -> ProbeResult {
+/// Position fixes of one mission in a frame common to every mission (e.g.
+/// GPS fixes at the surface, projected onto one local plane): `(stamp_s,
+/// [x_m, y_m])`, and their standard deviation per axis, m.
+#[derive(Clone, Debug)]
+pub struct PositionFixes {
+    pub fixes: Vec<(f64, [f64; 2])>,
+    pub sigma_m: f64,
+}
+
+/// A fix counts for a node when its stamp is within this of the node's, s.
+pub const FIX_MATCH_S: f64 = 1.0;
+/// Fixes must spread at least this far (RMS distance from their centroid,
+/// m) on each side to fix a heading.
+pub const MIN_FIX_SPREAD_M: f64 = 5.0;
+
+/// `(position at the node, fix)` for every node of `poses` with a fix
+/// within [`FIX_MATCH_S`] of its stamp (the nearest).
+fn fix_pairs(
+    run: &SlamOutput,
+    poses: &[Se2],
+    fixes: &PositionFixes,
+) -> Vec<(nalgebra::Vector2<f64>, nalgebra::Vector2<f64>)> {
+    let mut sorted = fixes.fixes.clone();
+    sorted.sort_by(|a, b| a.0.total_cmp(&b.0));
+    run.nodes
+        .iter()
+        .zip(poses)
+        .filter_map(|(n, p)| {
+            let i = sorted.partition_point(|f| f.0 < n.stamp_s);
+            let nearest = [i.checked_sub(1), Some(i)]
+                .into_iter()
+                .flatten()
+                .filter_map(|j| sorted.get(j))
+                .min_by(|a, b| (a.0 - n.stamp_s).abs().total_cmp(&(b.0 - n.stamp_s).abs()))?;
+            ((nearest.0 - n.stamp_s).abs() <= FIX_MATCH_S
+                && nearest.1.iter().all(|v| v.is_finite()))
+            .then(|| {
+                (
+                    p.translation(),
+                    nalgebra::Vector2::new(nearest.1[0], nearest.1[1]),
+                )
+            })
+        })
+        .collect()
+}
+
+/// The SE(2) fit `common_from_poses` of `pairs`, its RMS residual and
+/// the fixes' spread (m); `None` when the fixes spread less than
+/// [`MIN_FIX_SPREAD_M`].
+fn fit(pairs: &[(nalgebra::Vector2<f64>, nalgebra::Vector2<f64>)]) -> Option<(Se2, f64, f64)> {
+    if pairs.len() < 2 {
+        return None;
+    }
+    let (p, q): (Vec<_>, Vec<_>) = pairs.iter().copied().unzip();
+    let n = q.len() as f64;
+    let centroid = q.iter().sum::<nalgebra::Vector2<f64>>() / n;
+    let spread = (q.iter().map(|v| (v - centroid).norm_squared()).sum::<f64>() / n).sqrt();
+    if spread.is_nan() || spread < MIN_FIX_SPREAD_M {
+        return None;
+    }
+    let t = align_se2(&p, &q);
+    let rms = (p
+        .iter()
+        .zip(&q)
+        .map(|(a, b)| (t.transform_point(&Point2::from(*a)).coords - b).norm_squared())
+        .sum::<f64>()
+        / n)
+        .sqrt();
+    Some((t, rms, spread))
+}
+
+/// The prior `map_from_mission` of the mission `run` (its nodes at
+/// `own`, its own frame, with `fixes`) from the fixes of the map's
+/// missions (`map`: each run with its nodes' map-frame poses and its
+/// fixes, all in the same common frame): both sides fitted onto the
+/// common frame, `map_from_mission = common_from_map⁻¹ ⊕
+/// common_from_mission`. Its sigma adds, in quadrature, both sides' fix
+/// sigmas and both fits' RMS residuals (which hold the runs' drift); its
+/// heading sigma is that over the smaller spread of fixes. `None` when
+/// either side has too few fixes at its nodes or they spread too little
+/// to fix a heading ([`MIN_FIX_SPREAD_M`]).
+pub fn prior_from_fixes(
+    map: &[(&SlamOutput, &[Se2], &PositionFixes)],
+    run: &SlamOutput,
+    own: &[Se2],
+    fixes: &PositionFixes,
+) -> Option<PlacementPrior> {
+    let map_pairs: Vec<_> = map
+        .iter()
+        .flat_map(|(r, poses, f)| fix_pairs(r, poses, f))
+        .collect();
+    let map_sigma = map.iter().map(|(_, _, f)| f.sigma_m).fold(0.0, f64::max);
+    let (common_from_map, rms_map, spread_map) = fit(&map_pairs)?;
+    let (common_from_mission, rms_mission, spread_mission) = fit(&fix_pairs(run, own, fixes))?;
+    let sigma_m =
+        (map_sigma.powi(2) + fixes.sigma_m.powi(2) + rms_map.powi(2) + rms_mission.powi(2))
+            .sqrt()
+            .max(f64::EPSILON);
+    Some(PlacementPrior {
+        map_from_mission: common_from_map.inverse().compose(&common_from_mission),
+        sigma_m,
+        sigma_rad: (sigma_m / spread_map.min(spread_mission)).max(f64::EPSILON),
+    })
+}
+
+/// The search of one probe: the best coarse peaks over `region` by
+/// branch and bound ([`CoarseIndex::peaks`], exactly the best poses of the
+/// exhaustive grid search), then refined on the fine field.
+fn search_probe(
+    map: &MapFields,
+    probe: &Probe,
+    world_from_node: &Se2,
+    region: &Region,
+) -> ProbeResult {
     let coarse_points = thinned(&probe.points, COARSE_POINTS);
     let fine_points = thinned(&probe.points, FINE_POINTS);
-    let field = &map.coarse;
-    let grid = field.grid();
-    let stride = (COARSE_STEP_M / grid.cell_size_m()).round().max(1.0) as usize;
-    let width = grid.width();
-    let steps = (HEADING_WINDOW_RAD / COARSE_STEP_RAD).round() as i64;
-    // Every (score, pose) of the coarse grid over the covered cells.
-    let mut scored: Vec<(f64, Se2)> = Vec::new();
-    for &cell in field.covered_cells() {
-        let (ix, iy) = (cell as usize % width, cell as usize / width);
-        if ix % stride != 0 || iy % stride != 0 {
-            continue;
-        }
-        let (x, y) = grid.cell_centre_m(ix as i64, iy as i64);
-        for s in -steps..=steps {
-            let theta = wrap_angle(world_from_node.theta() + s as f64 * COARSE_STEP_RAD);
-            let pose = Se2::new(x, y, theta);
-            let score = field.score(&pose, &coarse_points, 1, 0.0).mean;
-            scored.push((score, pose));
-        }
-    }
-    scored.sort_by(|a, b| b.0.total_cmp(&a.0));
-    let mut peaks: Vec<Se2> = Vec::new();
-    for (_, pose) in &scored {
-        if peaks.len() >= PEAKS {
-            break;
-        }
-        if peaks
-            .iter()
-            .all(|p| distance_m(p, pose) >= PEAK_SEPARATION_M)
-        {
-            peaks.push(*pose);
-        }
-    }
-    let mut refined: Vec<(f64, Se2)> = peaks
+    let found = map
+        .coarse
+        .peaks(&coarse_points, region, PEAKS, PEAK_SEPARATION_M);
+    let mut refined: Vec<(f64, Se2)> = found
+        .poses
         .iter()
-        .map(|p| {
+        .map(|(_, p)| {
             let pose = climb(|q| map.fine.score(q, &fine_points, 1, 0.0).mean, *p);
             (map.fine.score(&pose, &fine_points, 1, 0.0).mean, pose)
         })
@@ -327,8 +524,11 @@ fn search_probe(map: &MapFields, probe: &Probe, world_from_node: &Se2) -> ProbeR
         } else {
             1.0
         },
-        usable: at_best.fit >= MIN_FIT && at_best.coverage >= MIN_COVERAGE,
+        usable: !found.poses.is_empty()
+            && at_best.fit >= MIN_FIT
+            && at_best.coverage >= MIN_COVERAGE,
         agrees: false,
+        coarse_evaluations: found.evaluations,
     }
 }
 
