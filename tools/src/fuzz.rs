@@ -261,10 +261,7 @@ pub fn fuzz_target(target: Target, options: &FuzzOptions) -> anyhow::Result<Fuzz
     };
     let marker = scratch_root.join(RUNNING_MARKER);
     std::fs::write(&marker, b"an echofield-fuzz run is using this folder\n")?;
-    let mut scratch = ScratchFolders {
-        root: scratch_root,
-        started: 0,
-    };
+    let mut scratch = ScratchFolders::new(scratch_root);
     let mut worker = Worker::spawn(&target, scratch.next());
     let mut report = FuzzReport {
         target: target.name.to_string(),
@@ -362,6 +359,10 @@ struct ScratchFolders {
 }
 
 impl ScratchFolders {
+    fn new(root: PathBuf) -> Self {
+        Self { root, started: 0 }
+    }
+
     fn next(&mut self) -> PathBuf {
         self.started += 1;
         if self.started == 1 {
