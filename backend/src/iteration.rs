@@ -68,6 +68,27 @@ impl Damping {
         }
     }
 
+    /// After a rejected (or, `singular`, unfactorisable) step: why the
+    /// iteration ends, or `None` to retry with more damping. Gauss-Newton
+    /// cannot retry; a tiny step that was solved ends it; so does λ past
+    /// its limit.
+    fn stop_after_rejection(&mut self, tiny_step: bool, singular: bool) -> Option<Termination> {
+        if self.gauss_newton {
+            return Some(if tiny_step {
+                Termination::StepTolerance
+            } else {
+                Termination::CostIncreased
+            });
+        }
+        if tiny_step && !singular {
+            return Some(Termination::StepTolerance);
+        }
+        if !self.rejected() {
+            return Some(Termination::DampingLimit);
+        }
+        None
+    }
+
     /// After a rejected step; false once λ passes its limit.
     fn rejected(&mut self) -> bool {
         self.lambda *= self.nu;
@@ -144,12 +165,8 @@ impl Iteration<'_> {
                     std::mem::swap(poses, &mut buffers.candidate);
                     cost = self.linearise(poses, &mut buffers.gradient);
                     self.log(summary, it, cost, lambda_used, step_norm, true);
-                    if relative_decrease < self.config.relative_cost_tolerance {
-                        termination = Termination::CostTolerance;
-                        break;
-                    }
-                    if tiny_step {
-                        termination = Termination::StepTolerance;
+                    if let Some(reason) = self.converged(relative_decrease, tiny_step) {
+                        termination = reason;
                         break;
                     }
                     damping.accepted(rho);
@@ -158,20 +175,8 @@ impl Iteration<'_> {
                     let singular = matches!(outcome, Outcome::Singular);
                     let norm = if singular { f64::NAN } else { step_norm };
                     self.log(summary, it, cost, lambda_used, norm, false);
-                    if damping.gauss_newton {
-                        termination = if tiny_step {
-                            Termination::StepTolerance
-                        } else {
-                            Termination::CostIncreased
-                        };
-                        break;
-                    }
-                    if tiny_step && !singular {
-                        termination = Termination::StepTolerance;
-                        break;
-                    }
-                    if !damping.rejected() {
-                        termination = Termination::DampingLimit;
+                    if let Some(reason) = damping.stop_after_rejection(tiny_step, singular) {
+                        termination = reason;
                         break;
                     }
                 }
@@ -181,6 +186,19 @@ impl Iteration<'_> {
         summary.final_cost = cost.robust;
         summary.final_chi2 = cost.chi2;
         Ok(())
+    }
+
+    /// Whether an accepted step ends the iteration: its relative cost
+    /// decrease is below the tolerance, or the step is tiny (below
+    /// `step_tolerance` relative to the poses).
+    fn converged(&self, relative_decrease: f64, tiny_step: bool) -> Option<Termination> {
+        if relative_decrease < self.config.relative_cost_tolerance {
+            Some(Termination::CostTolerance)
+        } else if tiny_step {
+            Some(Termination::StepTolerance)
+        } else {
+            None
+        }
     }
 
     /// Solves for the step `delta` and evaluates `candidate = poses ⊞ delta`.

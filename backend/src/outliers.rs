@@ -61,18 +61,20 @@
 //! skipped for the nodes they do not reach and those start where the
 //! initialisation puts them.
 
+mod innovation;
+mod support;
+
 use crate::config::{Initialisation, RobustConfig, SolverConfig};
 use crate::error::SolveError;
-use crate::linear::{BlockSystem, fill_reducing_ordering};
-use crate::linearize::{edge_error, edge_slots, error_and_jacobians, linearise};
-use crate::problem::{Problem, ProblemEdge};
+use crate::linearize::edge_error;
 use crate::robust::RobustKernel;
-use crate::solver::{Solver, linear_error, normalise};
+use crate::solver::Solver;
 use crate::summary::{SolveSummary, Termination};
-use echofield_graph::{EdgeKind, NodeId, PoseGraph, Se2};
-use nalgebra::Matrix3;
+use echofield_graph::{NodeId, PoseGraph, Se2};
+use innovation::innovation_chi2;
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
+use support::mutual_support;
 
 /// Settings of [`optimize_robust`]; which edges are suspect and their
 /// kernel come from [`SolverConfig::robust`].
@@ -252,17 +254,7 @@ pub fn optimize_robust(
         .collect();
     let suspect_edges = suspect.iter().filter(|s| **s).count();
     if suspect_edges == 0 {
-        let summary = Solver::new(solver.clone())?.optimize(graph)?;
-        return Ok(RobustSolveSummary {
-            suspect_edges,
-            growth_steps: 0,
-            growth_steps_at_cap: 0,
-            robust: summary.clone(),
-            least_squares: summary,
-            rounds: 1,
-            switched_off: Vec::new(),
-            time_s: start.elapsed().as_secs_f64(),
-        });
+        return without_suspects(graph, solver, start);
     }
 
     // 1-2. The trusted start, the mutual support of the suspects, then the
@@ -270,24 +262,7 @@ pub fn optimize_robust(
     let mut work = graph.clone();
     let trusted = Solver::new(solver.clone())?.start_poses(&work)?;
     let support = mutual_support(&work, &trusted, &suspect, outliers);
-    let kernels: Vec<RobustKernel> = work
-        .edges()
-        .zip(&support)
-        .map(|(e, n)| match solver.robust.kernel(e.kind) {
-            RobustKernel::None => RobustKernel::None,
-            _ if *n >= outliers.min_support => RobustKernel::None,
-            kernel => kernel,
-        })
-        .collect();
-    tracing::debug!(
-        "{} of {suspect_edges} suspect edges are believed (support of {} others)",
-        kernels
-            .iter()
-            .zip(&suspect)
-            .filter(|(k, s)| **s && **k == RobustKernel::None)
-            .count(),
-        outliers.min_support
-    );
+    let kernels = believed_kernels(&work, &support, &suspect, solver, outliers);
     let warm = SolverConfig {
         initialisation: Initialisation::Current,
         ..solver.clone()
@@ -299,24 +274,113 @@ pub fn optimize_robust(
     let robust = Solver::new(warm.clone())?.optimize_with(&mut work, Some(&kernels))?;
 
     // 4. Switch off, solve, switch back on what fits.
-    let plain = if outliers.final_kernel {
+    let plain = least_squares_config(&warm, outliers);
+    let (threshold, off) = initial_switch_off(&work, &suspect, &kernels, outliers);
+    let mut switching = Switching::start(&work, off, threshold, &plain, robust.clone())?;
+    while switching.rounds < outliers.max_rounds && switching.off.iter().any(|o| *o) {
+        if !switching.readmit(&mut work, &plain, solver.threads, outliers)? {
+            break;
+        }
+    }
+    work.set_poses(&switching.poses);
+    let switched_off = switched_off_edges(&work, &switching.off);
+    graph.set_poses(&switching.poses);
+    Ok(RobustSolveSummary {
+        suspect_edges,
+        growth_steps: growth.steps,
+        growth_steps_at_cap: growth.steps_at_cap,
+        robust,
+        least_squares: switching.least_squares,
+        rounds: switching.rounds,
+        switched_off,
+        time_s: start.elapsed().as_secs_f64(),
+    })
+}
+
+/// The solver of step 4: `warm` without kernels, unless
+/// [`OutlierConfig::final_kernel`] keeps them.
+fn least_squares_config(warm: &SolverConfig, outliers: &OutlierConfig) -> SolverConfig {
+    if outliers.final_kernel {
         warm.clone()
     } else {
         SolverConfig {
             robust: RobustConfig::default(),
             ..warm.clone()
         }
-    };
-    let chi2 = edge_chi2(&work);
+    }
+}
+
+/// [`optimize_robust`] of a graph without suspect edges: one plain solve,
+/// reported as both the robust and the least-squares solve.
+fn without_suspects(
+    graph: &mut PoseGraph,
+    solver: &SolverConfig,
+    start: Instant,
+) -> Result<RobustSolveSummary, SolveError> {
+    let summary = Solver::new(solver.clone())?.optimize(graph)?;
+    Ok(RobustSolveSummary {
+        suspect_edges: 0,
+        growth_steps: 0,
+        growth_steps_at_cap: 0,
+        robust: summary.clone(),
+        least_squares: summary,
+        rounds: 1,
+        switched_off: Vec::new(),
+        time_s: start.elapsed().as_secs_f64(),
+    })
+}
+
+/// The kernel of each edge during the growth and the robust solve: none
+/// for the trusted edges and for the suspects with at least `min_support`
+/// partners (believed), the configured kernel for the other suspects.
+fn believed_kernels(
+    graph: &PoseGraph,
+    support: &[usize],
+    suspect: &[bool],
+    solver: &SolverConfig,
+    outliers: &OutlierConfig,
+) -> Vec<RobustKernel> {
+    let kernels: Vec<RobustKernel> = graph
+        .edges()
+        .zip(support)
+        .map(|(e, n)| match solver.robust.kernel(e.kind) {
+            RobustKernel::None => RobustKernel::None,
+            _ if *n >= outliers.min_support => RobustKernel::None,
+            kernel => kernel,
+        })
+        .collect();
+    tracing::debug!(
+        "{} of {} suspect edges are believed (support of {} others)",
+        kernels
+            .iter()
+            .zip(suspect)
+            .filter(|(k, s)| **s && **k == RobustKernel::None)
+            .count(),
+        suspect.iter().filter(|s| **s).count(),
+        outliers.min_support
+    );
+    kernels
+}
+
+/// The switch-off threshold (χ², calibrated on the believed suspects) and
+/// the suspects above it at the graph's current poses (the robust
+/// solution).
+fn initial_switch_off(
+    graph: &PoseGraph,
+    suspect: &[bool],
+    kernels: &[RobustKernel],
+    outliers: &OutlierConfig,
+) -> (f64, Vec<bool>) {
+    let chi2 = edge_chi2(graph);
     let believed_chi2: Vec<f64> = suspect
         .iter()
-        .zip(&kernels)
+        .zip(kernels)
         .zip(&chi2)
         .filter(|((s, k), _)| **s && **k == RobustKernel::None)
         .map(|(_, c)| *c)
         .collect();
     let threshold = calibrated_threshold(outliers.switch_off_chi2, &believed_chi2);
-    let mut off: Vec<bool> = suspect
+    let off: Vec<bool> = suspect
         .iter()
         .zip(&chi2)
         .map(|(s, c)| *s && *c > threshold)
@@ -325,88 +389,143 @@ pub fn optimize_robust(
         "{} suspect edges above χ² {threshold:.2} after the robust solve",
         off.iter().filter(|o| **o).count()
     );
-    let mut rounds = 0;
-    let mut least_squares = robust.clone();
-    let mut poses = work.poses();
-    // The least-squares solution without the switched-off edges.
-    let mut kept = without(&work, &off, &poses);
-    match Solver::new(plain.clone())?.optimize(&mut kept) {
-        Ok(summary) => {
-            least_squares = summary;
-            poses = kept.poses();
-            rounds += 1;
+    (threshold, off)
+}
+
+/// Step 4 of the module documentation in progress: which edges are off,
+/// the least-squares solution without them and how many least-squares
+/// solves were made.
+struct Switching {
+    /// One flag per edge of the graph, in edge order.
+    off: Vec<bool>,
+    /// The graph without the switched-off edges, at `poses`.
+    kept: PoseGraph,
+    poses: Vec<Se2>,
+    least_squares: SolveSummary,
+    rounds: usize,
+    /// The switch-off χ² of [`initial_switch_off`].
+    threshold: f64,
+}
+
+impl Switching {
+    /// The first least-squares solve without the `off` edges, from the
+    /// robust solution (`graph`'s poses, summarised by `robust`). When
+    /// switching off disconnects the graph, nothing is switched off and the
+    /// robust solution stands.
+    fn start(
+        graph: &PoseGraph,
+        mut off: Vec<bool>,
+        threshold: f64,
+        plain: &SolverConfig,
+        robust: SolveSummary,
+    ) -> Result<Self, SolveError> {
+        let mut rounds = 0;
+        let mut least_squares = robust;
+        let mut poses = graph.poses();
+        let mut kept = without(graph, &off, &poses);
+        match Solver::new(plain.clone())?.optimize(&mut kept) {
+            Ok(summary) => {
+                least_squares = summary;
+                poses = kept.poses();
+                rounds += 1;
+            }
+            // Switching off left some node with no trusted link: keep the
+            // kernel's answer for this graph.
+            Err(SolveError::Disconnected { .. }) => {
+                tracing::warn!(
+                    "switching off the suspect edges disconnects the graph: the robust solution is returned"
+                );
+                off.iter_mut().for_each(|o| *o = false);
+            }
+            Err(e) => return Err(e),
         }
-        // Switching off left some node with no trusted link: keep the
-        // kernel's answer for this graph.
-        Err(SolveError::Disconnected { .. }) => {
-            tracing::warn!(
-                "switching off the suspect edges disconnects the graph: the robust solution is returned"
-            );
-            off.iter_mut().for_each(|o| *o = false);
-        }
-        Err(e) => return Err(e),
+        Ok(Self {
+            off,
+            kept,
+            poses,
+            least_squares,
+            rounds,
+            threshold,
+        })
     }
-    while rounds < outliers.max_rounds && off.iter().any(|o| *o) {
-        work.set_poses(&poses);
-        kept.set_poses(&poses);
-        let off_edges: Vec<usize> = (0..off.len()).filter(|k| off[*k]).collect();
-        let candidates: Vec<echofield_graph::Edge> = work
-            .edges()
-            .zip(&off)
-            .filter(|(_, o)| **o)
-            .map(|(e, _)| e.clone())
-            .collect();
-        let innovation = innovation_chi2(&kept, &candidates, solver.threads)?;
-        let plain_chi2 = edge_chi2(&work);
-        // Every edge that fits, alone, the point estimate or what the graph
-        // knows, most consistent first.
-        let mut fitting: Vec<(usize, f64)> = off_edges
-            .iter()
-            .zip(&innovation)
-            .filter(|(k, inn)| plain_chi2[**k] <= threshold || **inn <= threshold)
-            .map(|(k, inn)| (*k, inn.min(plain_chi2[*k])))
-            .collect();
-        fitting.sort_by(|a, b| a.1.total_cmp(&b.1));
-        let fitting: Vec<usize> = fitting.into_iter().map(|(k, _)| k).collect();
-        // Try all of them together, then the more consistent half, ...
-        let mut batches = Vec::new();
+
+    /// One round of switching back on: the switched-off edges that fit
+    /// alone ([`Switching::fitting`]), all together, else the more
+    /// consistent half, and so on, are switched back on when the
+    /// least-squares χ² rises by no more than the same tail quantile for
+    /// their degrees of freedom allows. Returns whether any batch was
+    /// admitted. `graph` is the whole graph; its poses are set to the
+    /// current solution.
+    fn readmit(
+        &mut self,
+        graph: &mut PoseGraph,
+        plain: &SolverConfig,
+        threads: usize,
+        outliers: &OutlierConfig,
+    ) -> Result<bool, SolveError> {
+        graph.set_poses(&self.poses);
+        self.kept.set_poses(&self.poses);
+        let fitting = self.fitting(graph, threads)?;
         let mut len = fitting.len();
         while len > 0 {
-            batches.push(&fitting[..len]);
+            let batch = &fitting[..len];
             len /= 2;
-        }
-        let mut admitted = false;
-        for batch in batches {
-            let mut trial_off = off.clone();
-            for k in batch.iter() {
+            let mut trial_off = self.off.clone();
+            for k in batch {
                 trial_off[*k] = false;
             }
-            let mut trial = without(&work, &trial_off, &poses);
+            let mut trial = without(graph, &trial_off, &self.poses);
             let summary = Solver::new(plain.clone())?.optimize(&mut trial)?;
-            let rise = summary.final_chi2 - least_squares.final_chi2;
-            let limit = same_tail_quantile(outliers.switch_off_chi2, 3 * batch.len()) * threshold
+            let rise = summary.final_chi2 - self.least_squares.final_chi2;
+            let limit = same_tail_quantile(outliers.switch_off_chi2, 3 * batch.len())
+                * self.threshold
                 / outliers.switch_off_chi2;
             tracing::debug!(
-                "round {rounds}: {} edges fit alone; together they raise χ² by {rise:.1} (limit {limit:.1})",
+                "round {}: {} edges fit alone; together they raise χ² by {rise:.1} (limit {limit:.1})",
+                self.rounds,
                 batch.len()
             );
             if rise <= limit {
-                off = trial_off;
-                kept = trial;
-                poses = kept.poses();
-                least_squares = summary;
-                rounds += 1;
-                admitted = true;
-                break;
+                self.off = trial_off;
+                self.kept = trial;
+                self.poses = self.kept.poses();
+                self.least_squares = summary;
+                self.rounds += 1;
+                return Ok(true);
             }
         }
-        if !admitted {
-            break;
-        }
+        Ok(false)
     }
-    work.set_poses(&poses);
-    let chi2 = edge_chi2(&work);
-    let switched_off = work
+
+    /// The switched-off edges that fit, alone, the point estimate (their
+    /// χ² at `graph`'s poses) or what the graph knows (their innovation
+    /// χ² against `kept`), at most the threshold; most consistent first.
+    fn fitting(&self, graph: &PoseGraph, threads: usize) -> Result<Vec<usize>, SolveError> {
+        let off_edges: Vec<usize> = (0..self.off.len()).filter(|k| self.off[*k]).collect();
+        let candidates: Vec<echofield_graph::Edge> = graph
+            .edges()
+            .zip(&self.off)
+            .filter(|(_, o)| **o)
+            .map(|(e, _)| e.clone())
+            .collect();
+        let innovation = innovation_chi2(&self.kept, &candidates, threads)?;
+        let plain_chi2 = edge_chi2(graph);
+        let mut fitting: Vec<(usize, f64)> = off_edges
+            .iter()
+            .zip(&innovation)
+            .filter(|(k, inn)| plain_chi2[**k] <= self.threshold || **inn <= self.threshold)
+            .map(|(k, inn)| (*k, inn.min(plain_chi2[*k])))
+            .collect();
+        fitting.sort_by(|a, b| a.1.total_cmp(&b.1));
+        Ok(fitting.into_iter().map(|(k, _)| k).collect())
+    }
+}
+
+/// The edges flagged in `off`, with their χ² at `graph`'s poses, in edge
+/// order.
+fn switched_off_edges(graph: &PoseGraph, off: &[bool]) -> Vec<SwitchedOff> {
+    let chi2 = edge_chi2(graph);
+    graph
         .indexed_edges()
         .enumerate()
         .filter(|(k, _)| off[*k])
@@ -416,18 +535,7 @@ pub fn optimize_robust(
             to: e.to,
             chi2: chi2[k],
         })
-        .collect();
-    graph.set_poses(&poses);
-    Ok(RobustSolveSummary {
-        suspect_edges,
-        growth_steps: growth.steps,
-        growth_steps_at_cap: growth.steps_at_cap,
-        robust,
-        least_squares,
-        rounds,
-        switched_off,
-        time_s: start.elapsed().as_secs_f64(),
-    })
+        .collect()
 }
 
 /// The poses after growing the graph in node order, and how many solves it
@@ -562,235 +670,6 @@ fn edge_chi2(graph: &PoseGraph) -> Vec<f64> {
         .collect()
 }
 
-/// For each edge, how many other suspect edges agree with it (0 for the
-/// trusted edges): step 1 of the module documentation, in the manner of
-/// pairwise consistency maximisation (Mangelson, Dominic, Eustice,
-/// Vasudevan, ICRA 2018) restricted to nearby pairs.
-///
-/// Two suspect edges `a -> b` (measurement `Z₁`) and `c -> d` (`Z₂`), with
-/// `|a − c|` and `|b − d|` at most `support_window_nodes` in node order,
-/// close the cycle `Z₁ · P(b→d) · Z₂⁻¹ · P(c→a)`, where `P` composes the
-/// trusted relative poses between consecutive nodes (from `trusted`, the
-/// trusted edges' start). The cycle is the identity when both are right;
-/// its covariance is the first-order propagation of both edges' and every
-/// chain step's covariance (a chain step's covariance is the inverse of the
-/// summed information of the trusted edges between the two nodes). They
-/// agree when the cycle's χ² is at most `support_chi2`. A pair whose chain
-/// has a step without a trusted edge is not tested.
-fn mutual_support(
-    graph: &PoseGraph,
-    trusted: &[Se2],
-    suspect: &[bool],
-    config: &OutlierConfig,
-) -> Vec<usize> {
-    let n = graph.node_count();
-    // Covariance of the trusted step k -> k+1, if there is one.
-    let mut step_information = vec![Matrix3::<f64>::zeros(); n.saturating_sub(1)];
-    let mut has_step = vec![false; n.saturating_sub(1)];
-    // Suspect edges as (low, high, low_from_high, covariance, edge index).
-    let mut loops = Vec::new();
-    for (k, (i, j, edge)) in graph.indexed_edges().enumerate() {
-        if edge.kind == EdgeKind::Prior || i == j {
-            continue;
-        }
-        let Some(covariance) = edge.information.try_inverse() else {
-            continue;
-        };
-        if suspect[k] {
-            if i < j {
-                loops.push((i, j, edge.measurement, covariance, k));
-            } else {
-                // X_j⁻¹X_i = exp(−e) Z⁻¹ = Z⁻¹ exp(−Ad(Z) e).
-                let ad = edge.measurement.adjoint();
-                let inverse_covariance = ad * covariance * ad.transpose();
-                loops.push((j, i, edge.measurement.inverse(), inverse_covariance, k));
-            }
-        } else if i.abs_diff(j) == 1 {
-            // Information is in the error coordinates of i -> j; for a
-            // step stored as j -> i use the inverse's (as above).
-            let low = i.min(j);
-            let information = if i < j {
-                edge.information
-            } else {
-                let ad = edge.measurement.adjoint();
-                match (ad * covariance * ad.transpose()).try_inverse() {
-                    Some(info) => info,
-                    None => continue,
-                }
-            };
-            step_information[low] += information;
-            has_step[low] = true;
-        }
-    }
-    let step_covariance: Vec<Option<Matrix3<f64>>> = step_information
-        .iter()
-        .zip(&has_step)
-        .map(|(info, has)| if *has { info.try_inverse() } else { None })
-        .collect();
-    let step = |k: usize| trusted[k].between(&trusted[k + 1]);
-    // The chain from node u to node v as factors (transform, covariance),
-    // or None when a step has no trusted edge.
-    let chain = |u: usize, v: usize, factors: &mut Vec<(Se2, Matrix3<f64>)>| -> bool {
-        if u <= v {
-            for (k, c) in step_covariance.iter().enumerate().take(v).skip(u) {
-                let Some(c) = c else {
-                    return false;
-                };
-                factors.push((step(k), *c));
-            }
-        } else {
-            for k in (v..u).rev() {
-                let Some(c) = step_covariance[k] else {
-                    return false;
-                };
-                let d = step(k);
-                let ad = d.adjoint();
-                factors.push((d.inverse(), ad * c * ad.transpose()));
-            }
-        }
-        true
-    };
-    let mut order: Vec<usize> = (0..loops.len()).collect();
-    order.sort_by_key(|&l| (loops[l].0, loops[l].1));
-    let w = config.support_window_nodes;
-    let mut support = vec![0usize; graph.edge_count()];
-    let mut factors = Vec::new();
-    for (rank, &l1) in order.iter().enumerate() {
-        let (a, b, z1, c1, k1) = loops[l1];
-        for &l2 in &order[rank + 1..] {
-            let (c, d, z2, c2, k2) = loops[l2];
-            if c > a + w {
-                break;
-            }
-            if b.abs_diff(d) > w {
-                continue;
-            }
-            // Z₁ · P(b→d) · Z₂⁻¹ · P(c→a).
-            factors.clear();
-            factors.push((z1, c1));
-            if !chain(b, d, &mut factors) {
-                continue;
-            }
-            let ad2 = z2.adjoint();
-            factors.push((z2.inverse(), ad2 * c2 * ad2.transpose()));
-            if !chain(c, a, &mut factors) {
-                continue;
-            }
-            if cycle_chi2(&factors).is_some_and(|chi2| chi2 <= config.support_chi2) {
-                support[k1] += 1;
-                support[k2] += 1;
-            }
-        }
-    }
-    support
-}
-
-/// χ² of the cycle `F₁ ⋯ F_m` against the identity, each factor perturbed
-/// on the right by noise of the given covariance: the product is
-/// `(F₁⋯F_m) exp(δ)` with `δ = Σ_k Ad(S_k⁻¹) ε_k`, `S_k = F_{k+1}⋯F_m`.
-/// `None` when the propagated covariance is singular.
-fn cycle_chi2(factors: &[(Se2, Matrix3<f64>)]) -> Option<f64> {
-    let mut after = Se2::identity();
-    let mut covariance = Matrix3::<f64>::zeros();
-    for (transform, c) in factors.iter().rev() {
-        let ad = after.inverse().adjoint();
-        covariance += ad * c * ad.transpose();
-        after = transform.compose(&after);
-    }
-    let e = after.to_vector();
-    let cholesky = covariance.cholesky()?;
-    Some(e.dot(&cholesky.solve(&e)))
-}
-
-/// The innovation χ² of each edge of `candidates` against the least-squares
-/// estimate of `graph` at its current poses (a minimum):
-/// `eᵀ (Σ_edge + J H⁻¹ Jᵀ)⁻¹ e`, where `e` is the candidate's error, `J` its
-/// Jacobian and `H` the information of `graph`'s poses (Gauss-Newton,
-/// no kernels). It is the rise in the minimum χ² that adding the edge alone
-/// would cause (to first order), so it judges the edge against what the
-/// graph knows *and how well it knows it*, where the edge's own χ² judges
-/// it against the point estimate only. Candidates whose covariance is not
-/// defined get `f64::INFINITY`.
-pub(crate) fn innovation_chi2(
-    graph: &PoseGraph,
-    candidates: &[echofield_graph::Edge],
-    threads: usize,
-) -> Result<Vec<f64>, SolveError> {
-    let problem = Problem::new(graph)?;
-    let n = problem.variables();
-    let pairs = normalise(problem.block_pairs());
-    let ordering = fill_reducing_ordering(n, &pairs).map_err(linear_error)?;
-    let mut system = BlockSystem::<3>::new(n, &pairs, &ordering, threads).map_err(linear_error)?;
-    let slots = edge_slots(&problem, &system);
-    let kernels = vec![RobustKernel::None; problem.edges.len()];
-    let poses = graph.poses();
-    let mut gradient = vec![0.0; system.dim()];
-    linearise(
-        &problem,
-        &kernels,
-        &slots,
-        &poses,
-        &mut system,
-        &mut gradient,
-    );
-    system
-        .factorise(&vec![0.0; system.dim()])
-        .map_err(linear_error)?;
-    let mut column = vec![0.0; system.dim()];
-    let mut out = Vec::with_capacity(candidates.len());
-    for edge in candidates {
-        let (Some(i), Some(j)) = (graph.index_of(edge.from), graph.index_of(edge.to)) else {
-            out.push(f64::INFINITY);
-            continue;
-        };
-        let Some(covariance) = edge.information.try_inverse() else {
-            out.push(f64::INFINITY);
-            continue;
-        };
-        let candidate = ProblemEdge {
-            kind: edge.kind,
-            from: i,
-            to: j,
-            measurement_inverse: edge.measurement.inverse(),
-            measurement: edge.measurement,
-            information: edge.information,
-        };
-        let (e, a, b) = error_and_jacobians(&candidate, &poses);
-        // J H⁻¹ Jᵀ, one column of Jᵀ at a time.
-        let blocks = [
-            (problem.variable_of[i], a),
-            (problem.variable_of[j].filter(|_| !candidate.is_prior()), b),
-        ];
-        let mut predicted = Matrix3::<f64>::zeros();
-        for c in 0..3 {
-            column.fill(0.0);
-            for (v, jac) in &blocks {
-                if let Some(v) = v {
-                    for r in 0..3 {
-                        column[3 * v + r] += jac[(c, r)];
-                    }
-                }
-            }
-            system.solve(&mut column);
-            for (v, jac) in &blocks {
-                if let Some(v) = v {
-                    for r in 0..3 {
-                        for k in 0..3 {
-                            predicted[(r, c)] += jac[(r, k)] * column[3 * v + k];
-                        }
-                    }
-                }
-            }
-        }
-        let total = covariance + 0.5 * (predicted + predicted.transpose());
-        out.push(match total.cholesky() {
-            Some(ch) => e.dot(&ch.solve(&e)),
-            None => f64::INFINITY,
-        });
-    }
-    Ok(out)
-}
-
 /// Believed suspects (at least this many) calibrate the switch-off
 /// threshold; fewer leave it as configured.
 const MIN_CALIBRATION_EDGES: usize = 20;
@@ -841,6 +720,7 @@ fn same_tail_quantile(chi2_3: f64, dof: usize) -> f64 {
 mod tests {
     use super::*;
     use crate::optimize;
+    use echofield_graph::EdgeKind;
     use echofield_graph::synthetic::{FalseLoops, Noise, add_false_loops, grid_pose_graph};
 
     fn loops_robust(kernel: RobustKernel) -> SolverConfig {

@@ -113,34 +113,11 @@ impl Solver {
     ) -> Result<SolveSummary, SolveError> {
         let start = Instant::now();
         let problem = Problem::new(graph)?;
-        let kernels: Vec<RobustKernel> = match edge_kernels {
-            Some(k) if k.len() == problem.edges.len() => k.to_vec(),
-            _ => problem
-                .edges
-                .iter()
-                .map(|e| self.config.robust.kernel(e.kind))
-                .collect(),
-        };
+        let kernels = self.kernels(&problem, edge_kernels);
         let mut poses = graph.poses();
         let plain = vec![RobustKernel::None; kernels.len()];
         let initial_chi2 = evaluate(&problem, &plain, &poses).chi2;
-        let mut summary = SolveSummary {
-            algorithm: self.config.algorithm,
-            initialisation: self.config.initialisation,
-            initial_chi2,
-            initialised_chi2: initial_chi2,
-            final_chi2: initial_chi2,
-            initial_cost: f64::NAN,
-            final_cost: f64::NAN,
-            iterations: 0,
-            termination: Termination::NothingToOptimise,
-            time_s: 0.0,
-            initialisation_time_s: 0.0,
-            symbolic_reused: false,
-            free_poses: problem.variables(),
-            edges: problem.edges.len(),
-            log: Vec::new(),
-        };
+        let mut summary = self.unsolved_summary(&problem, initial_chi2);
         if problem.variables() == 0 {
             let cost = evaluate(&problem, &kernels, &poses);
             summary.initial_cost = cost.robust;
@@ -172,6 +149,45 @@ impl Solver {
         graph.set_poses(&poses);
         summary.time_s = start.elapsed().as_secs_f64();
         Ok(summary)
+    }
+
+    /// One kernel per edge of `problem`: `edge_kernels` when it has one per
+    /// edge, else the configured kernel of each edge's kind.
+    fn kernels(
+        &self,
+        problem: &Problem,
+        edge_kernels: Option<&[RobustKernel]>,
+    ) -> Vec<RobustKernel> {
+        match edge_kernels {
+            Some(k) if k.len() == problem.edges.len() => k.to_vec(),
+            _ => problem
+                .edges
+                .iter()
+                .map(|e| self.config.robust.kernel(e.kind))
+                .collect(),
+        }
+    }
+
+    /// The summary before any iteration: χ² `initial_chi2` (no kernels)
+    /// throughout, costs NaN, termination `NothingToOptimise`.
+    fn unsolved_summary(&self, problem: &Problem, initial_chi2: f64) -> SolveSummary {
+        SolveSummary {
+            algorithm: self.config.algorithm,
+            initialisation: self.config.initialisation,
+            initial_chi2,
+            initialised_chi2: initial_chi2,
+            final_chi2: initial_chi2,
+            initial_cost: f64::NAN,
+            final_cost: f64::NAN,
+            iterations: 0,
+            termination: Termination::NothingToOptimise,
+            time_s: 0.0,
+            initialisation_time_s: 0.0,
+            symbolic_reused: false,
+            free_poses: problem.variables(),
+            edges: problem.edges.len(),
+            log: Vec::new(),
+        }
     }
 
     /// The poses the iterations of [`Solver::optimize`] would start from:

@@ -47,22 +47,7 @@ use std::path::Path;
 pub fn read_miniking_bag(path: &Path) -> Result<SonarRecording, DatasetError> {
     let bytes = std::fs::read(path).map_err(|e| DatasetError::io(path, e))?;
     let bag = bag::read_bag(path, &bytes)?;
-    let mut info = Vec::new();
-    for conn in bag.connections.values() {
-        info.push((
-            format!("connection {}", conn.id),
-            format!("{} [{}]", conn.topic, conn.message_type),
-        ));
-        if conn.message_type == ACOUSTIC_BEAM_TYPE && conn.md5sum != ACOUSTIC_BEAM_MD5 {
-            return Err(DatasetError::Format {
-                path: path.to_path_buf(),
-                message: format!(
-                    "topic {}: {ACOUSTIC_BEAM_TYPE} with md5sum {}, this reader knows {ACOUSTIC_BEAM_MD5}",
-                    conn.topic, conn.md5sum
-                ),
-            });
-        }
-    }
+    let info = connection_info(path, &bag)?;
     let mut stats = ReadStats {
         records: bag.records,
         messages: bag.messages.len(),
@@ -82,34 +67,8 @@ pub fn read_miniking_bag(path: &Path) -> Result<SonarRecording, DatasetError> {
                 .or_default() += 1;
             continue;
         }
-        let record = format!("message {index} (byte {})", message.offset);
-        let beam = decode_acoustic_beam(message.data)
-            .map_err(|(field, msg)| DatasetError::parse(path, &record, field, msg))?;
-        let stamp_s = if beam.stamp_s > 0.0 {
-            beam.stamp_s
-        } else {
-            message.time_s
-        };
-        if let Some(prev) = beams.last()
-            && stamp_s < prev.stamp_s
-        {
-            return Err(DatasetError::parse(
-                path,
-                record,
-                "header.stamp",
-                format!(
-                    "{stamp_s} s is earlier than the previous beam's {} s",
-                    prev.stamp_s
-                ),
-            ));
-        }
-        beams.push(SonarBeam {
-            stamp_s,
-            angle_rad: wrap_angle(f64::from(beam.angle_deg).to_radians()),
-            bin_size_m: f64::from(beam.range_max_m) / f64::from(beam.bins),
-            first_bin_range_m: 0.0,
-            intensities: beam.intensities,
-        });
+        let next = beam(path, index, message, beams.last())?;
+        beams.push(next);
     }
     if beams.is_empty() {
         return Err(DatasetError::Missing {
@@ -131,5 +90,66 @@ pub fn read_miniking_bag(path: &Path) -> Result<SonarRecording, DatasetError> {
         info,
         beams,
         stats,
+    })
+}
+
+/// `(connection N, topic [type])` of every connection; an error when an
+/// AcousticBeam connection has another md5sum than the one decoded here.
+fn connection_info(path: &Path, bag: &bag::Bag) -> Result<Vec<(String, String)>, DatasetError> {
+    let mut info = Vec::new();
+    for conn in bag.connections.values() {
+        info.push((
+            format!("connection {}", conn.id),
+            format!("{} [{}]", conn.topic, conn.message_type),
+        ));
+        if conn.message_type == ACOUSTIC_BEAM_TYPE && conn.md5sum != ACOUSTIC_BEAM_MD5 {
+            return Err(DatasetError::Format {
+                path: path.to_path_buf(),
+                message: format!(
+                    "topic {}: {ACOUSTIC_BEAM_TYPE} with md5sum {}, this reader knows {ACOUSTIC_BEAM_MD5}",
+                    conn.topic, conn.md5sum
+                ),
+            });
+        }
+    }
+    Ok(info)
+}
+
+/// The beam of AcousticBeam message `index`, stamped with its header stamp
+/// (the record time when that is 0). Errors name the message and field:
+/// a message that does not decode, a stamp earlier than `prev`'s.
+fn beam(
+    path: &Path,
+    index: usize,
+    message: &bag::BagMessage,
+    prev: Option<&SonarBeam>,
+) -> Result<SonarBeam, DatasetError> {
+    let record = format!("message {index} (byte {})", message.offset);
+    let beam = decode_acoustic_beam(message.data)
+        .map_err(|(field, msg)| DatasetError::parse(path, &record, field, msg))?;
+    let stamp_s = if beam.stamp_s > 0.0 {
+        beam.stamp_s
+    } else {
+        message.time_s
+    };
+    if let Some(prev) = prev
+        && stamp_s < prev.stamp_s
+    {
+        return Err(DatasetError::parse(
+            path,
+            record,
+            "header.stamp",
+            format!(
+                "{stamp_s} s is earlier than the previous beam's {} s",
+                prev.stamp_s
+            ),
+        ));
+    }
+    Ok(SonarBeam {
+        stamp_s,
+        angle_rad: wrap_angle(f64::from(beam.angle_deg).to_radians()),
+        bin_size_m: f64::from(beam.range_max_m) / f64::from(beam.bins),
+        first_bin_range_m: 0.0,
+        intensities: beam.intensities,
     })
 }

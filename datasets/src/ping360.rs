@@ -100,14 +100,57 @@ pub fn read_ping360(path: &Path) -> Result<SonarRecording, DatasetError> {
             .partition_point(|c| c.stream_offset <= last_byte)
             - 1;
         let stamp_s = container.chunks[chunk].elapsed_s;
-        let settings = SettingsChange {
+        stats.record_settings(SettingsChange {
             first_beam: beams.len(),
             stamp_s,
             gain_setting: data.gain_setting,
             transmit_duration_us: f64::from(data.transmit_duration_us),
             transmit_frequency_khz: f64::from(data.transmit_frequency_khz),
-        };
-        let changed = stats.settings_changes.last().is_none_or(|last| {
+        });
+        beams.push(SonarBeam {
+            stamp_s,
+            angle_rad: wrap_angle(f64::from(data.angle_grad) * TAU / GRADIANS_PER_TURN),
+            bin_size_m: data.bin_size_m(),
+            first_bin_range_m: 0.0,
+            intensities: data.data.to_vec(),
+        });
+    }
+    if beams.is_empty() {
+        return Err(no_beams(path, &stats));
+    }
+    Ok(SonarRecording {
+        path: path.to_path_buf(),
+        device: "Blue Robotics Ping360".into(),
+        info: container.info,
+        beams,
+        stats,
+    })
+}
+
+/// The error of a log without a readable beam, with what was read.
+fn no_beams(path: &Path, stats: &ReadStats) -> DatasetError {
+    DatasetError::Missing {
+        path: path.to_path_buf(),
+        what: format!(
+            "Ping360 device_data messages (read {} records, {} good messages, {} bad checksums{})",
+            stats.records,
+            stats.messages,
+            stats.bad_checksums,
+            stats
+                .stopped_early
+                .as_ref()
+                .map(|s| format!("; stopped at {s}"))
+                .unwrap_or_default()
+        ),
+    }
+}
+
+impl ReadStats {
+    /// Appends `settings` to `settings_changes` when the gain, transmit
+    /// duration or frequency differs from the last change recorded (or
+    /// none is).
+    fn record_settings(&mut self, settings: SettingsChange) {
+        let changed = self.settings_changes.last().is_none_or(|last| {
             (
                 last.gain_setting,
                 last.transmit_duration_us,
@@ -119,37 +162,7 @@ pub fn read_ping360(path: &Path) -> Result<SonarRecording, DatasetError> {
             )
         });
         if changed {
-            stats.settings_changes.push(settings);
+            self.settings_changes.push(settings);
         }
-        beams.push(SonarBeam {
-            stamp_s,
-            angle_rad: wrap_angle(f64::from(data.angle_grad) * TAU / GRADIANS_PER_TURN),
-            bin_size_m: data.bin_size_m(),
-            first_bin_range_m: 0.0,
-            intensities: data.data.to_vec(),
-        });
     }
-    if beams.is_empty() {
-        return Err(DatasetError::Missing {
-            path: path.to_path_buf(),
-            what: format!(
-                "Ping360 device_data messages (read {} records, {} good messages, {} bad checksums{})",
-                stats.records,
-                stats.messages,
-                stats.bad_checksums,
-                stats
-                    .stopped_early
-                    .as_ref()
-                    .map(|s| format!("; stopped at {s}"))
-                    .unwrap_or_default()
-            ),
-        });
-    }
-    Ok(SonarRecording {
-        path: path.to_path_buf(),
-        device: "Blue Robotics Ping360".into(),
-        info: container.info,
-        beams,
-        stats,
-    })
 }

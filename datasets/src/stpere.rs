@@ -83,7 +83,7 @@ pub use text::{SkipReason, SkippedLine};
 
 use crate::error::DatasetError;
 use echofield_frontend::sensors::{
-    Attitude, GroundTruthPose, Mission, MountingSource, SensorMounting, SweepTiming,
+    Attitude, GroundTruthPose, Mission, MountingSource, SensorMounting, SonarBeam, SweepTiming,
 };
 use echofield_graph::{Se2, wrap_angle};
 use std::path::{Path, PathBuf};
@@ -163,7 +163,60 @@ pub fn read_stpere_dir(dir: &Path) -> Result<StPereLogs, DatasetError> {
             what: "DVL samples (the log has no data line)".into(),
         });
     }
-    let sonar_setup = match &files.setup {
+    let sonar = read_sonar_logs(&files, &mut skipped)?;
+    let ground_truth = ground_truth(&dgps.fixes, &mti.samples);
+    let mission = Mission {
+        name: files.prefix.trim_matches('_').to_string(),
+        mounting: assumed_mounting(),
+        beams: sonar.beams,
+        dvl: dvl.samples,
+        attitude: mti.samples,
+        ground_truth,
+        warnings: Default::default(),
+    };
+    Ok(StPereLogs {
+        mission,
+        beam_stamps: sonar.beam_stamps,
+        sonar_setup: sonar.setup,
+        dgps: dgps.fixes,
+        local_frame,
+        dvl_compass: dvl.compass,
+        applied_yaw_offset_rad: 0.0,
+        skipped,
+    })
+}
+
+/// The St Pere mounting: the head's pose is the public starter code's
+/// hint and the angle and sweep conventions are the head's as logged, none
+/// of it verified (`echofield calibrate` checks them), so it is marked
+/// assumed; the MTi yaw is stored as logged and the heading offset (fitted
+/// against DGPS, see the module doc) turns it into the heading.
+fn assumed_mounting() -> SensorMounting {
+    SensorMounting {
+        vehicle_from_sonar: Se2::new(0.33, 0.0, std::f64::consts::PI),
+        vehicle_from_dvl: Se2::identity(),
+        heading_offset_rad: MARINA_YAW_OFFSET_RAD,
+        source: MountingSource::Assumed,
+        ..SensorMounting::default()
+    }
+}
+
+/// What the optional sonar logs of a mission folder hold (empty when
+/// absent).
+struct SonarLogs {
+    setup: Option<SonarSetup>,
+    beam_stamps: Vec<BeamStamp>,
+    beams: Vec<SonarBeam>,
+}
+
+/// Reads `_SETUP.log`, `_IS_timestamps.log` and `_IS.log` when present,
+/// adding their skipped lines to `skipped`. Errors: a log that does not
+/// parse, or beams without the setup that gives their bin size.
+fn read_sonar_logs(
+    files: &MissionFiles,
+    skipped: &mut Vec<SkippedLine>,
+) -> Result<SonarLogs, DatasetError> {
+    let setup = match &files.setup {
         Some(path) => Some(sonar::parse_setup(&TextLog::read(path)?)?),
         None => None,
     };
@@ -175,7 +228,7 @@ pub fn read_stpere_dir(dir: &Path) -> Result<StPereLogs, DatasetError> {
         }
         None => Vec::new(),
     };
-    let beams = match (&files.beams, &sonar_setup) {
+    let beams = match (&files.beams, &setup) {
         (Some(path), Some(setup)) => {
             let (beams, skips) = sonar::parse_beams(&TextLog::read(path)?, setup)?;
             skipped.extend(skips);
@@ -189,36 +242,10 @@ pub fn read_stpere_dir(dir: &Path) -> Result<StPereLogs, DatasetError> {
         }
         (None, _) => Vec::new(),
     };
-    let ground_truth = ground_truth(&dgps.fixes, &mti.samples);
-    let mission = Mission {
-        name: files.prefix.trim_matches('_').to_string(),
-        mounting: SensorMounting {
-            vehicle_from_sonar: Se2::new(0.33, 0.0, std::f64::consts::PI),
-            vehicle_from_dvl: Se2::identity(),
-            // The MTi yaw is stored as logged; this calibration (fitted
-            // against DGPS, see the module doc) turns it into the heading.
-            heading_offset_rad: MARINA_YAW_OFFSET_RAD,
-            // The head's pose is the public starter code's hint, and the
-            // angle and sweep conventions are the head's as logged: none
-            // of it verified (`echofield calibrate` checks them).
-            source: MountingSource::Assumed,
-            ..SensorMounting::default()
-        },
-        beams,
-        dvl: dvl.samples,
-        attitude: mti.samples,
-        ground_truth,
-        warnings: Default::default(),
-    };
-    Ok(StPereLogs {
-        mission,
+    Ok(SonarLogs {
+        setup,
         beam_stamps,
-        sonar_setup,
-        dgps: dgps.fixes,
-        local_frame,
-        dvl_compass: dvl.compass,
-        applied_yaw_offset_rad: 0.0,
-        skipped,
+        beams,
     })
 }
 

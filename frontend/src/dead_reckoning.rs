@@ -250,7 +250,15 @@ impl Default for DeadReckoningConfig {
 }
 
 impl DeadReckoningConfig {
+    /// Every value in range; the error names the first field out of it.
     pub fn validate(&self) -> Result<(), FrontendError> {
+        self.check_signs()?;
+        self.check_upper_bounds()
+    }
+
+    /// Noises, times and gates finite and positive or non-negative; the
+    /// heading offset within ±2π.
+    fn check_signs(&self) -> Result<(), FrontendError> {
         let positive = [
             ("dvl_velocity_noise_mps", self.dvl_velocity_noise_mps),
             ("heading_noise_rad", self.heading_noise_rad),
@@ -299,10 +307,14 @@ impl DeadReckoningConfig {
                 ),
             ));
         }
-        // Noises beyond what the quantity can be: the covariances they
-        // make overflow the filter's arithmetic (1e9 m/s turned a tank
-        // mission into beams spread over 1e12 m; 1e9 rad made the
-        // odometry's information matrix indefinite).
+        Ok(())
+    }
+
+    /// No noise beyond what the quantity can be: the covariances such
+    /// noises make overflow the filter's arithmetic (a DVL noise of 1e9 m/s
+    /// spread a tank mission's beams over 1e12 m; a heading noise of 1e9
+    /// rad made the odometry's information matrix indefinite).
+    fn check_upper_bounds(&self) -> Result<(), FrontendError> {
         let upper = [
             (
                 "dvl_velocity_noise_mps",

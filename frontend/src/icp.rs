@@ -99,36 +99,14 @@ pub fn icp(
     config: &IcpConfig,
 ) -> Result<IcpResult, FrontendError> {
     config.validate()?;
-    for (name, points) in [("source", source), ("target", target)] {
-        if let Some(i) = points
-            .iter()
-            .position(|p| !(p.x.is_finite() && p.y.is_finite()))
-        {
-            return Err(FrontendError::input(
-                format!("ICP {name} point {i}"),
-                "x/y",
-                "not finite",
-            ));
-        }
-    }
-    if !initial.is_finite() {
-        return Err(FrontendError::input("ICP", "initial", "pose is not finite"));
-    }
+    check_input(source, target, initial)?;
     let tree = KdTree::new(target);
     let mut estimate = *initial;
     let mut gate = config.initial_max_distance_m;
     let mut pairs: Vec<(Point2<f64>, Point2<f64>)> = Vec::with_capacity(source.len());
     let mut last_sq = 0.0;
     for iteration in 1..=config.max_iterations {
-        pairs.clear();
-        last_sq = 0.0;
-        for p in source {
-            let q = estimate.transform_point(p);
-            if let Some((j, d2)) = tree.nearest(&q, gate) {
-                pairs.push((*p, target[j]));
-                last_sq += d2;
-            }
-        }
+        last_sq = pair_nearest(source, target, &tree, &estimate, gate, &mut pairs);
         if pairs.len() < config.min_correspondences {
             return Err(FrontendError::insufficient(
                 "ICP",
@@ -166,6 +144,53 @@ pub fn icp(
         config.max_iterations,
         false,
     ))
+}
+
+/// Every point finite and the initial pose finite; errors name the point.
+fn check_input(
+    source: &[Point2<f64>],
+    target: &[Point2<f64>],
+    initial: &Se2,
+) -> Result<(), FrontendError> {
+    for (name, points) in [("source", source), ("target", target)] {
+        if let Some(i) = points
+            .iter()
+            .position(|p| !(p.x.is_finite() && p.y.is_finite()))
+        {
+            return Err(FrontendError::input(
+                format!("ICP {name} point {i}"),
+                "x/y",
+                "not finite",
+            ));
+        }
+    }
+    if !initial.is_finite() {
+        return Err(FrontendError::input("ICP", "initial", "pose is not finite"));
+    }
+    Ok(())
+}
+
+/// Replaces `pairs` with each source point (source frame) and its nearest
+/// target point within `gate` metres of it placed by `estimate`; returns
+/// the sum of the squared distances, m².
+fn pair_nearest(
+    source: &[Point2<f64>],
+    target: &[Point2<f64>],
+    tree: &KdTree,
+    estimate: &Se2,
+    gate: f64,
+    pairs: &mut Vec<(Point2<f64>, Point2<f64>)>,
+) -> f64 {
+    pairs.clear();
+    let mut sum_sq = 0.0;
+    for p in source {
+        let q = estimate.transform_point(p);
+        if let Some((j, d2)) = tree.nearest(&q, gate) {
+            pairs.push((*p, target[j]));
+            sum_sq += d2;
+        }
+    }
+    sum_sq
 }
 
 fn result(

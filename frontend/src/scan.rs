@@ -133,6 +133,35 @@ pub fn build_scan(
         points: Vec::with_capacity(beams.len() * config.max_peaks.min(4)),
         ..Scan::empty(reference_stamp_s)
     };
+    let echoes = echoes(beams, reference_from_beams, config)?;
+    let angles: Vec<f64> = beams.iter().map(|b| b.angle_rad).collect();
+    let keep = keep_returns(&echoes, &angles, &config.off_axis);
+    for (echo, _) in echoes.iter().zip(&keep).filter(|(_, k)| **k) {
+        // Eq. (3) in the frame of eq. (4).
+        let (x, y) = reference_from_beams[echo.beam].transform_xy(echo.range_m, 0.0);
+        scan.points.push(Point2::new(x, y));
+        scan.intensities.push(echo.intensity as f32);
+        scan.beam_indices.push(echo.beam as u32);
+    }
+    if config.beam_width.enabled {
+        correct_beam_width(&mut scan, reference_from_beams, &config.beam_width);
+    }
+    if scan.points.len() < config.min_scan_points {
+        return Err(FrontendError::TooFewRanges {
+            reference_stamp_s,
+            found: scan.points.len(),
+            required: config.min_scan_points,
+        });
+    }
+    Ok(scan)
+}
+
+/// The returns of every beam (each checked first), in beam order.
+fn echoes(
+    beams: &[SonarBeam],
+    reference_from_beams: &[Se2],
+    config: &SegmentationConfig,
+) -> Result<Vec<Echo>, FrontendError> {
     let (mut smoothed, mut returns): (Vec<f32>, Vec<RangeReturn>) = (Vec::new(), Vec::new());
     let mut echoes = Vec::new();
     for (j, (beam, frame)) in beams.iter().zip(reference_from_beams).enumerate() {
@@ -145,39 +174,30 @@ pub fn build_scan(
             intensity: f64::from(r.intensity),
         }));
     }
-    let angles: Vec<f64> = beams.iter().map(|b| b.angle_rad).collect();
-    let keep = keep_returns(&echoes, &angles, &config.off_axis);
-    for (echo, _) in echoes.iter().zip(&keep).filter(|(_, k)| **k) {
-        // Eq. (3) in the frame of eq. (4).
-        let (x, y) = reference_from_beams[echo.beam].transform_xy(echo.range_m, 0.0);
-        scan.points.push(Point2::new(x, y));
-        scan.intensities.push(echo.intensity as f32);
-        scan.beam_indices.push(echo.beam as u32);
+    Ok(echoes)
+}
+
+/// Moves each point of `scan` along its beam by the beam-width correction
+/// (metres, recorded in `range_corrections_m`).
+fn correct_beam_width(
+    scan: &mut Scan,
+    reference_from_beams: &[Se2],
+    config: &beam_width::BeamWidthCorrection,
+) {
+    scan.range_corrections_m = beam_width::corrections(
+        &scan.points,
+        &scan.beam_indices,
+        reference_from_beams,
+        config,
+    );
+    for ((p, &b), &dr) in scan
+        .points
+        .iter_mut()
+        .zip(&scan.beam_indices)
+        .zip(&scan.range_corrections_m)
+    {
+        *p += reference_from_beams[b as usize].rotation() * Vector2::new(f64::from(dr), 0.0);
     }
-    if config.beam_width.enabled {
-        scan.range_corrections_m = beam_width::corrections(
-            &scan.points,
-            &scan.beam_indices,
-            reference_from_beams,
-            &config.beam_width,
-        );
-        for ((p, &b), &dr) in scan
-            .points
-            .iter_mut()
-            .zip(&scan.beam_indices)
-            .zip(&scan.range_corrections_m)
-        {
-            *p += reference_from_beams[b as usize].rotation() * Vector2::new(f64::from(dr), 0.0);
-        }
-    }
-    if scan.points.len() < config.min_scan_points {
-        return Err(FrontendError::TooFewRanges {
-            reference_stamp_s,
-            found: scan.points.len(),
-            required: config.min_scan_points,
-        });
-    }
-    Ok(scan)
 }
 
 fn check_beam(j: usize, beam: &SonarBeam, frame: &Se2) -> Result<(), FrontendError> {

@@ -62,119 +62,154 @@ pub fn implausible_yaw_rate(rate_radps: f64) -> Option<String> {
 /// implausible; the error names the first such record and its field.
 /// Non-finite values are left for the stages that read them to reject.
 pub fn screen(mission: &Mission) -> Result<(Cow<'_, Mission>, Warnings), FrontendError> {
-    let bad_dvl: Vec<(usize, String)> = mission
-        .dvl
-        .iter()
-        .enumerate()
-        .filter(|(_, s)| s.valid)
-        .filter_map(|(i, s)| implausible_dvl_speed(&s.velocity_mps).map(|why| (i, why)))
-        .collect();
-    let bad_attitude: Vec<(usize, &str, String)> = mission
-        .attitude
-        .iter()
-        .enumerate()
-        .filter_map(|(i, a)| {
-            implausible_angle(a.yaw_rad)
-                .map(|why| (i, "yaw_rad", why))
-                .or_else(|| {
-                    a.yaw_rate_radps
-                        .and_then(implausible_yaw_rate)
-                        .map(|why| (i, "yaw_rate_radps", why))
-                })
-        })
-        .collect();
-    let bad_beams: Vec<(usize, String)> = mission
-        .beams
-        .iter()
-        .enumerate()
-        .filter_map(|(i, b)| implausible_angle(b.angle_rad).map(|why| (i, why)))
-        .collect();
+    let bad = Implausible::find(mission);
     let mut warnings = Warnings::new();
-    if bad_dvl.is_empty() && bad_attitude.is_empty() && bad_beams.is_empty() {
+    if bad.dvl.is_empty() && bad.attitude.is_empty() && bad.beams.is_empty() {
         return Ok((Cow::Borrowed(mission), warnings));
     }
     let valid_dvl = mission.dvl.iter().filter(|s| s.valid).count();
-    if let Some((i, why)) = bad_dvl.first() {
-        let record = format!("DVL sample {i}");
-        if bad_dvl.len() == valid_dvl {
-            return Err(FrontendError::input(
-                record,
-                "velocity_mps",
-                format!("{why}; and so does every other valid sample ({valid_dvl})"),
-            ));
+    let streams = [
+        (
+            &bad.dvl,
+            valid_dvl,
+            "DVL sample",
+            format!("valid sample ({valid_dvl})"),
+            "valid DVL samples",
+        ),
+        (
+            &bad.attitude,
+            mission.attitude.len(),
+            "attitude sample",
+            "attitude sample".to_string(),
+            "attitude samples",
+        ),
+        (
+            &bad.beams,
+            mission.beams.len(),
+            "beam",
+            "beam".to_string(),
+            "sonar beams",
+        ),
+    ];
+    for (bad, total, record, every_other, samples) in streams {
+        let text = StreamText {
+            record,
+            every_other,
+            samples,
+        };
+        warnings.extend(stream_warning(bad, total, &text)?);
+    }
+    Ok((Cow::Owned(bad.removed_from(mission)), warnings))
+}
+
+/// One implausible sample: its index in its stream, the field and why.
+type Bad = (usize, &'static str, String);
+
+/// The implausible samples of each stream, in stream order.
+struct Implausible {
+    /// Valid DVL samples only (invalid ones carry no velocity).
+    dvl: Vec<Bad>,
+    attitude: Vec<Bad>,
+    beams: Vec<Bad>,
+}
+
+impl Implausible {
+    fn find(mission: &Mission) -> Self {
+        let dvl = mission
+            .dvl
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| s.valid)
+            .filter_map(|(i, s)| {
+                implausible_dvl_speed(&s.velocity_mps).map(|why| (i, "velocity_mps", why))
+            })
+            .collect();
+        let attitude = mission
+            .attitude
+            .iter()
+            .enumerate()
+            .filter_map(|(i, a)| {
+                implausible_angle(a.yaw_rad)
+                    .map(|why| (i, "yaw_rad", why))
+                    .or_else(|| {
+                        a.yaw_rate_radps
+                            .and_then(implausible_yaw_rate)
+                            .map(|why| (i, "yaw_rate_radps", why))
+                    })
+            })
+            .collect();
+        let beams = mission
+            .beams
+            .iter()
+            .enumerate()
+            .filter_map(|(i, b)| implausible_angle(b.angle_rad).map(|why| (i, "angle_rad", why)))
+            .collect();
+        Self {
+            dvl,
+            attitude,
+            beams,
         }
-        warnings.push(
-            Warning::new(
-                WarningKind::ImplausibleValues,
-                bad_dvl.len(),
-                format!(
-                    "{} of {valid_dvl} valid DVL samples were dropped as implausible (first: {record}, velocity_mps: {why})",
-                    bad_dvl.len()
-                ),
-            )
-            .at(record),
-        );
     }
-    if let Some((i, field, why)) = bad_attitude.first() {
-        let record = format!("attitude sample {i}");
-        if bad_attitude.len() == mission.attitude.len() {
-            return Err(FrontendError::input(
-                record,
-                *field,
-                format!("{why}; and so does every other attitude sample"),
-            ));
+
+    /// `mission` with the implausible DVL samples marked invalid and the
+    /// implausible attitude samples and beams removed.
+    fn removed_from(&self, mission: &Mission) -> Mission {
+        let mut out = mission.clone();
+        for &(i, _, _) in &self.dvl {
+            out.dvl[i].valid = false;
         }
-        warnings.push(
-            Warning::new(
-                WarningKind::ImplausibleValues,
-                bad_attitude.len(),
-                format!(
-                    "{} of {} attitude samples were dropped as implausible (first: {record}, {field}: {why})",
-                    bad_attitude.len(),
-                    mission.attitude.len()
-                ),
-            )
-            .at(record),
-        );
+        let keep = |n: usize, bad: &[Bad]| {
+            let mut keep = vec![true; n];
+            bad.iter().for_each(|b| keep[b.0] = false);
+            keep
+        };
+        let keep_attitude = keep(out.attitude.len(), &self.attitude);
+        let mut k = keep_attitude.iter();
+        out.attitude.retain(|_| *k.next().unwrap_or(&true));
+        let keep_beams = keep(out.beams.len(), &self.beams);
+        let mut k = keep_beams.iter();
+        out.beams.retain(|_| *k.next().unwrap_or(&true));
+        out
     }
-    if let Some((i, why)) = bad_beams.first() {
-        let record = format!("beam {i}");
-        if bad_beams.len() == mission.beams.len() {
-            return Err(FrontendError::input(
-                record,
-                "angle_rad",
-                format!("{why}; and so does every other beam"),
-            ));
-        }
-        warnings.push(
-            Warning::new(
-                WarningKind::ImplausibleValues,
-                bad_beams.len(),
-                format!(
-                    "{} of {} sonar beams were dropped as implausible (first: {record}, angle_rad: {why})",
-                    bad_beams.len(),
-                    mission.beams.len()
-                ),
-            )
-            .at(record),
-        );
-    }
-    let mut out = mission.clone();
-    for &(i, _) in &bad_dvl {
-        out.dvl[i].valid = false;
-    }
-    let drop = |n: usize, bad: &mut dyn Iterator<Item = usize>| {
-        let mut keep = vec![true; n];
-        bad.for_each(|i| keep[i] = false);
-        keep
+}
+
+/// How a stream's records are named in the messages.
+struct StreamText {
+    /// One record, before its index ("DVL sample").
+    record: &'static str,
+    /// "every other ..." when all are implausible.
+    every_other: String,
+    /// The records, in the count of those dropped ("valid DVL samples").
+    samples: &'static str,
+}
+
+/// The warning for a stream that lost the `bad` of its `total` samples
+/// (`None` when it lost none). Errors when it lost every one, naming the
+/// first record and field.
+fn stream_warning(
+    bad: &[Bad],
+    total: usize,
+    text: &StreamText,
+) -> Result<Option<Warning>, FrontendError> {
+    let Some((i, field, why)) = bad.first() else {
+        return Ok(None);
     };
-    let keep = drop(out.attitude.len(), &mut bad_attitude.iter().map(|b| b.0));
-    let mut k = keep.iter();
-    out.attitude.retain(|_| *k.next().unwrap_or(&true));
-    let keep = drop(out.beams.len(), &mut bad_beams.iter().map(|b| b.0));
-    let mut k = keep.iter();
-    out.beams.retain(|_| *k.next().unwrap_or(&true));
-    Ok((Cow::Owned(out), warnings))
+    let record = format!("{} {i}", text.record);
+    if bad.len() == total {
+        return Err(FrontendError::input(
+            record,
+            *field,
+            format!("{why}; and so does every other {}", text.every_other),
+        ));
+    }
+    let message = format!(
+        "{} of {total} {} were dropped as implausible (first: {record}, {field}: {why})",
+        bad.len(),
+        text.samples
+    );
+    Ok(Some(
+        Warning::new(WarningKind::ImplausibleValues, bad.len(), message).at(record),
+    ))
 }
 
 #[cfg(test)]

@@ -232,34 +232,15 @@ pub(crate) fn extract_ranges_into(
     };
     match config.mode {
         PeakMode::Strongest => {
-            // The first maximum (the nearest of equal peaks), at the centre
-            // of its plateau.
-            let (best, value) =
-                values
-                    .iter()
-                    .enumerate()
-                    .fold(
-                        (0, f32::NEG_INFINITY),
-                        |acc, (i, &v)| if v > acc.1 { (i, v) } else { acc },
-                    );
-            if threshold.passes(value) {
-                out.push(ret(window.start + plateau_centre(values, best)));
+            if let Some(best) = strongest(values, &threshold) {
+                out.push(ret(window.start + best));
             }
         }
         PeakMode::Multiple => {
-            // Local maxima: plateaus higher than both neighbours.
-            let mut peaks = Vec::new();
-            let mut i = 0;
-            while i < values.len() {
-                let v = values[i];
-                let end = i + values[i + 1..].iter().take_while(|&&w| w == v).count();
-                let rising = i == 0 || values[i - 1] < v;
-                let falling = end + 1 == values.len() || values[end + 1] < v;
-                if rising && falling && threshold.passes(v) {
-                    peaks.push(window.start + (i + end) / 2);
-                }
-                i = end + 1;
-            }
+            let mut peaks: Vec<usize> = local_maxima(values, &threshold)
+                .into_iter()
+                .map(|i| window.start + i)
+                .collect();
             peaks.sort_by(|&a, &b| smoothed[b].total_cmp(&smoothed[a]).then(a.cmp(&b)));
             let min_separation_bins = config.min_peak_separation_m / beam.bin_size_m;
             for bin in peaks {
@@ -276,6 +257,41 @@ pub(crate) fn extract_ranges_into(
             out[start..].sort_by_key(|r| r.bin);
         }
     }
+}
+
+/// The first maximum of `values` (the nearest of equal peaks), at the
+/// centre of its plateau, when it passes `threshold`; an index in `values`.
+fn strongest(values: &[f32], threshold: &Threshold) -> Option<usize> {
+    let (best, value) = values
+        .iter()
+        .enumerate()
+        .fold(
+            (0, f32::NEG_INFINITY),
+            |acc, (i, &v)| {
+                if v > acc.1 { (i, v) } else { acc }
+            },
+        );
+    threshold
+        .passes(value)
+        .then(|| plateau_centre(values, best))
+}
+
+/// The local maxima of `values` that pass `threshold`: plateaus higher
+/// than both neighbours, each at its centre, in order; indices in `values`.
+fn local_maxima(values: &[f32], threshold: &Threshold) -> Vec<usize> {
+    let mut peaks = Vec::new();
+    let mut i = 0;
+    while i < values.len() {
+        let v = values[i];
+        let end = i + values[i + 1..].iter().take_while(|&&w| w == v).count();
+        let rising = i == 0 || values[i - 1] < v;
+        let falling = end + 1 == values.len() || values[end + 1] < v;
+        if rising && falling && threshold.passes(v) {
+            peaks.push((i + end) / 2);
+        }
+        i = end + 1;
+    }
+    peaks
 }
 
 /// The first bin after the ringing: the first bin below `level`, moved on

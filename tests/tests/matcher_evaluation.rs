@@ -15,7 +15,7 @@
 //!   rate (29%).
 
 use echofield::matching::MissionRotations;
-use echofield::matching::evaluation::{Evaluation, EvaluationConfig, Method, Trial, evaluate};
+use echofield::matching::evaluation::{Evaluation, Method, Trial, TrialConfig, evaluate};
 use echofield::slam::SlamConfig;
 use echofield_datasets::sim::{Scenario, simulate_mission};
 
@@ -23,11 +23,11 @@ fn evaluation(scenario: &str, pairs: usize, trials: usize, seed: u64) -> Evaluat
     let mission = simulate_mission(&Scenario::named(scenario).unwrap(), 1).unwrap();
     let config = SlamConfig::default();
     let rotations = MissionRotations::new(mission, &config).unwrap();
-    let eval = EvaluationConfig {
+    let eval = TrialConfig {
         trials_per_pair: trials,
         max_pairs_per_kind: pairs,
         seed,
-        ..EvaluationConfig::default()
+        ..TrialConfig::default()
     };
     let result = evaluate(&rotations, &config, &eval).unwrap();
     // Every trial drew its initial error within the bounds.
@@ -125,10 +125,10 @@ fn rotations_before_the_navigation_starts_are_not_drawn() {
     let message = format!("{:#}", rotations.scan(0, &config).unwrap_err());
     let covered = format!("the navigation covers rotations {}-{last}", uncovered.len());
     assert!(message.contains(&covered), "{message}");
-    let eval = EvaluationConfig {
+    let eval = TrialConfig {
         trials_per_pair: 1,
         max_pairs_per_kind: 60,
-        ..EvaluationConfig::default()
+        ..TrialConfig::default()
     };
     let result = evaluate(&rotations, &config, &eval).unwrap();
     let table = result.table();
@@ -179,9 +179,9 @@ fn the_slam_trajectory_compensates_the_motion_better_than_dead_reckoning() {
         after.point_5m_m.median < before.point_5m_m.median,
         "{before:?}\n{after:?}"
     );
-    let eval = EvaluationConfig {
+    let eval = TrialConfig {
         trials_per_pair: 2,
-        ..EvaluationConfig::default()
+        ..TrialConfig::default()
     };
     let result = evaluate(&rotations, &config, &eval).unwrap();
     assert!(

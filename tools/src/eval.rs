@@ -155,7 +155,7 @@ pub fn ate(
         Alignment::Se2 => align_se2(&p, &q),
         Alignment::None => Se2::identity(),
     };
-    let mut errors: Vec<f64> = p
+    let errors: Vec<f64> = p
         .iter()
         .zip(&q)
         .map(|(p, q)| {
@@ -163,6 +163,13 @@ pub fn ate(
             (q - Vector2::new(x, y)).norm()
         })
         .collect();
+    ate_stats(errors, &pairs, transform)
+}
+
+/// The statistics of the position `errors` (m, one per associated pair of
+/// `pairs`, not empty) after `transform`. Errors when an error or the RMSE
+/// is not finite, naming the pair.
+fn ate_stats(mut errors: Vec<f64>, pairs: &[(usize, usize)], transform: Se2) -> Result<AteStats> {
     let n = errors.len() as f64;
     let rmse_m = (errors.iter().map(|e| e * e).sum::<f64>() / n).sqrt();
     // Never report NaN or infinity as a result: the readers bound every

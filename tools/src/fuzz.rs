@@ -246,112 +246,59 @@ fn run_one(target: &Target, scratch: &Path, input: &Input) -> Outcome {
     }
 }
 
-/// Fuzzes `target` under `options` (see the module doc).
+/// Fuzzes `target` under `options` (see the module doc). Errors when the
+/// seeds cannot be read, the scratch folder cannot be made or a finding
+/// cannot be saved, or when the worker thread stops.
 pub fn fuzz_target(target: Target, options: &FuzzOptions) -> anyhow::Result<FuzzReport> {
     install_quiet_panic_hook();
     let target = Arc::new(target);
     let seeds = (target.seeds)()?;
     let mut rng = ChaCha8Rng::seed_from_u64(options.seed);
-    // Without a findings folder the scratch files live in a temporary
-    // folder of this run only (removed when it ends).
-    let temporary = match &options.findings_dir {
-        Some(_) => None,
-        None => Some(
-            tempfile::Builder::new()
-                .prefix(&format!("echofield-fuzz-{}-", target.name))
-                .tempdir()?,
-        ),
-    };
-    let scratch_root = match (&options.findings_dir, &temporary) {
-        (Some(dir), _) => dir.join(target.name),
-        (None, Some(t)) => t.path().to_path_buf(),
-        (None, None) => std::env::temp_dir(),
-    };
-    std::fs::create_dir_all(&scratch_root)?;
+    let (temporary, scratch_root) = scratch_root(target.name, options)?;
     let aborted_previous_run = match &options.findings_dir {
         Some(_) => keep_input_of_aborted_run(&scratch_root)?,
         None => None,
     };
     let marker = scratch_root.join(RUNNING_MARKER);
     std::fs::write(&marker, b"an echofield-fuzz run is using this folder\n")?;
-    let mut workers_started = 0usize;
-    let mut scratch = || {
-        workers_started += 1;
-        if workers_started == 1 {
-            scratch_root.join("current")
-        } else {
-            scratch_root.join(format!("current-{workers_started}"))
-        }
-    };
-    let mut worker = Worker::spawn(&target, scratch());
+    let mut scratch = ScratchFolders::new(scratch_root);
+    let mut worker = Worker::spawn(&target, scratch.next());
     let mut report = FuzzReport {
         target: target.name.to_string(),
         aborted_previous_run,
         ..FuzzReport::default()
     };
     let start = Instant::now();
-    loop {
-        if options.max_inputs.is_some_and(|n| report.inputs >= n)
-            || options.duration.is_some_and(|d| start.elapsed() >= d)
-            || report.hangs as usize >= MAX_HANGS
-        {
-            break;
-        }
+    while !report.done(options, start) {
         let input = next_input(&target, &seeds, &mut rng, options.generated_share);
         let index = report.inputs;
         report.inputs += 1;
+        let stopped = || anyhow::anyhow!("the fuzz worker of {} stopped", target.name);
         worker
             .to_worker
             .send(input.clone())
-            .map_err(|_| anyhow::anyhow!("the fuzz worker of {} stopped", target.name))?;
+            .map_err(|_| stopped())?;
         let finding = match worker.from_worker.recv_timeout(options.timeout) {
-            Ok(Outcome::Accepted) => {
-                report.accepted += 1;
-                None
-            }
-            Ok(Outcome::Rejected(message)) => {
-                report.errors += 1;
-                if report.sample_errors.len() < 8
-                    && !report.sample_errors.iter().any(|m| same_kind(m, &message))
-                {
-                    report.sample_errors.push(message);
-                }
-                None
-            }
-            Ok(Outcome::Panicked(message)) => {
-                report.panics += 1;
-                Some(("panic", message))
-            }
+            Ok(outcome) => report.count(outcome),
             Err(RecvTimeoutError::Timeout) => {
                 report.hangs += 1;
-                worker = Worker::spawn(&target, scratch());
+                worker = Worker::spawn(&target, scratch.next());
                 Some((
                     "hang",
                     format!("no answer within {:.1} s", options.timeout.as_secs_f64()),
                 ))
             }
-            Err(RecvTimeoutError::Disconnected) => {
-                anyhow::bail!("the fuzz worker of {} stopped", target.name)
-            }
+            Err(RecvTimeoutError::Disconnected) => return Err(stopped()),
         };
         if let Some((kind, message)) = finding {
-            let saved_to = match &options.findings_dir {
-                Some(dir) => Some(save_finding(
-                    &dir.join(target.name),
-                    kind,
-                    index,
-                    &message,
-                    &input,
-                )?),
-                None => None,
-            };
-            report.findings.push(Finding {
+            let finding = Finding {
                 kind,
                 message,
                 input_index: index,
-                saved_to,
+                saved_to: None,
                 input,
-            });
+            };
+            report.findings.push(saved(finding, target.name, options)?);
         }
     }
     report.seconds = start.elapsed().as_secs_f64();
@@ -359,6 +306,105 @@ pub fn fuzz_target(target: Target, options: &FuzzOptions) -> anyhow::Result<Fuzz
     let _ = std::fs::remove_file(&marker);
     drop(temporary);
     Ok(report)
+}
+
+/// `finding` saved under the findings folder's target folder, when there
+/// is a findings folder (`saved_to` says where).
+fn saved(
+    mut finding: Finding,
+    target_name: &str,
+    options: &FuzzOptions,
+) -> anyhow::Result<Finding> {
+    if let Some(dir) = &options.findings_dir {
+        finding.saved_to = Some(save_finding(
+            &dir.join(target_name),
+            finding.kind,
+            finding.input_index,
+            &finding.message,
+            &finding.input,
+        )?);
+    }
+    Ok(finding)
+}
+
+/// The folder the workers' scratch folders go in, created: the target's
+/// folder under the findings folder, or without one a temporary folder of
+/// this run only (returned too, so that it lives until the run ends).
+fn scratch_root(
+    target_name: &str,
+    options: &FuzzOptions,
+) -> anyhow::Result<(Option<tempfile::TempDir>, PathBuf)> {
+    let temporary = match &options.findings_dir {
+        Some(_) => None,
+        None => Some(
+            tempfile::Builder::new()
+                .prefix(&format!("echofield-fuzz-{target_name}-"))
+                .tempdir()?,
+        ),
+    };
+    let root = match (&options.findings_dir, &temporary) {
+        (Some(dir), _) => dir.join(target_name),
+        (None, Some(t)) => t.path().to_path_buf(),
+        (None, None) => std::env::temp_dir(),
+    };
+    std::fs::create_dir_all(&root)?;
+    Ok((temporary, root))
+}
+
+/// One scratch folder per worker: `current`, then `current-2`, ... for the
+/// workers started after a hang.
+struct ScratchFolders {
+    root: PathBuf,
+    started: usize,
+}
+
+impl ScratchFolders {
+    fn new(root: PathBuf) -> Self {
+        Self { root, started: 0 }
+    }
+
+    fn next(&mut self) -> PathBuf {
+        self.started += 1;
+        if self.started == 1 {
+            self.root.join("current")
+        } else {
+            self.root.join(format!("current-{}", self.started))
+        }
+    }
+}
+
+impl FuzzReport {
+    /// Whether the run ends: the input budget or the time (since `start`)
+    /// is spent, or too many inputs hung.
+    fn done(&self, options: &FuzzOptions, start: Instant) -> bool {
+        options.max_inputs.is_some_and(|n| self.inputs >= n)
+            || options.duration.is_some_and(|d| start.elapsed() >= d)
+            || self.hangs as usize >= MAX_HANGS
+    }
+
+    /// Counts one parse outcome (keeping a few distinct error messages);
+    /// a panic is a finding, returned as (kind, message).
+    fn count(&mut self, outcome: Outcome) -> Option<(&'static str, String)> {
+        match outcome {
+            Outcome::Accepted => {
+                self.accepted += 1;
+                None
+            }
+            Outcome::Rejected(message) => {
+                self.errors += 1;
+                if self.sample_errors.len() < 8
+                    && !self.sample_errors.iter().any(|m| same_kind(m, &message))
+                {
+                    self.sample_errors.push(message);
+                }
+                None
+            }
+            Outcome::Panicked(message) => {
+                self.panics += 1;
+                Some(("panic", message))
+            }
+        }
+    }
 }
 
 /// Left in a target's folder while a run uses it: found at the start of

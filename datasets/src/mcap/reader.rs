@@ -1,6 +1,7 @@
 //! [`read_mission`]: one pass over the MCAP records, decoding the channels
 //! that map to a sensor stream and skipping the others.
 
+mod assemble;
 mod container;
 
 use super::cdr::CdrReader;
@@ -50,6 +51,51 @@ impl Decoder {
         match self {
             Decoder::Json(s) => s == stream,
             Decoder::Ros(ty, _) => ty.can_feed(stream),
+        }
+    }
+}
+
+impl Decoder {
+    /// One message: the records it holds and, for ROS messages, its
+    /// `header.frame_id`; `log_time_ns` stamps messages without a header.
+    /// Errors name the field that does not decode.
+    fn decode(
+        self,
+        data: &[u8],
+        log_time_ns: u64,
+    ) -> Result<(Decoded, Option<String>), FieldError> {
+        match self {
+            Decoder::Json(Stream::Beam) => {
+                json::decode_beam(data).map(|b| (Decoded::Beams(vec![b]), None))
+            }
+            Decoder::Json(Stream::Dvl) => json::decode_dvl(data).map(|d| (Decoded::Dvl(d), None)),
+            Decoder::Json(Stream::Attitude) => {
+                json::decode_attitude(data).map(|a| (Decoded::Attitude(a), None))
+            }
+            Decoder::Json(Stream::GroundTruth) => {
+                json::decode_ground_truth(data).map(|g| (Decoded::GroundTruth(g), None))
+            }
+            Decoder::Ros(ty, Wire::Cdr) => CdrReader::new(data)
+                .and_then(|mut r| messages::decode(ty, &mut r, log_time_ns))
+                .map(|(d, frame)| (d, Some(frame))),
+            Decoder::Ros(ty, Wire::Ros1) => {
+                messages::decode(ty, &mut Ros1Reader::new(data), log_time_ns)
+                    .map(|(d, frame)| (d, Some(frame)))
+            }
+        }
+    }
+}
+
+/// Whether the messages of `topic` are decoded. Not decoded: transforms on
+/// topics other than `/tf_static` and `/tf`, and topics of a stream whose
+/// topic is chosen (unless chosen themselves, for any role).
+fn needed(choice: &TopicChoice, decoder: Decoder, topic: &str) -> bool {
+    match decoder.stream() {
+        None => topic == TF_STATIC || topic == TF,
+        Some(s) => {
+            let choice = &choice.topics;
+            choice[s as usize].as_ref().is_none_or(|t| *t == topic)
+                || choice.iter().any(|t| t.as_deref() == Some(topic))
         }
     }
 }
@@ -353,41 +399,12 @@ impl<'c> State<'c> {
         let Some(decoder) = decoder else {
             return Ok(());
         };
-        // Not decoded: transforms on other topics, and topics of a stream
-        // whose topic is chosen (unless chosen themselves).
-        let needed = match decoder.stream() {
-            None => topic == TF_STATIC || topic == TF,
-            Some(s) => {
-                let choice = &self.choice.topics;
-                choice[s as usize].as_ref().is_none_or(|t| *t == topic)
-                    || choice.iter().any(|t| t.as_deref() == Some(topic.as_str()))
-            }
-        };
-        if !needed {
+        if !needed(self.choice, decoder, &topic) {
             return Ok(());
         }
-        let decoded = match decoder {
-            Decoder::Json(Stream::Beam) => {
-                json::decode_beam(data).map(|b| (Decoded::Beams(vec![b]), None))
-            }
-            Decoder::Json(Stream::Dvl) => json::decode_dvl(data).map(|d| (Decoded::Dvl(d), None)),
-            Decoder::Json(Stream::Attitude) => {
-                json::decode_attitude(data).map(|a| (Decoded::Attitude(a), None))
-            }
-            Decoder::Json(Stream::GroundTruth) => {
-                json::decode_ground_truth(data).map(|g| (Decoded::GroundTruth(g), None))
-            }
-            Decoder::Ros(ty, Wire::Cdr) => CdrReader::new(data)
-                .and_then(|mut r| messages::decode(ty, &mut r, log_time_ns))
-                .map(|(d, frame)| (d, Some(frame))),
-            Decoder::Ros(ty, Wire::Ros1) => {
-                messages::decode(ty, &mut Ros1Reader::new(data), log_time_ns)
-                    .map(|(d, frame)| (d, Some(frame)))
-            }
-        };
-        let (decoded, frame_id) = decoded.map_err(|e: FieldError| {
-            e.at(&self.file, format!("message {index} (topic `{topic}`)"))
-        })?;
+        let (decoded, frame_id) = decoder
+            .decode(data, log_time_ns)
+            .map_err(|e| e.at(&self.file, format!("message {index} (topic `{topic}`)")))?;
         if entry.frame_id.is_none() {
             entry.frame_id = frame_id;
         }
@@ -429,6 +446,12 @@ impl<'c> State<'c> {
         Ok(())
     }
 
+    /// The mission from the topics read: the chosen topic of each stream
+    /// feeds it, its mounting comes from the echofield metadata or else
+    /// from the static transforms, and each stream is sorted by stamp (a
+    /// warning counts the records that went backwards). Also what became of
+    /// every topic. Errors when no topic can feed a stream and there is no
+    /// echofield metadata, or when the topic choice is invalid.
     fn finish(self) -> Result<(Mission, Vec<ChannelUse>), DatasetError> {
         let chosen = self.choose_topics()?;
         if self.metadata.is_none() && chosen.iter().all(Option::is_none) {
@@ -443,167 +466,70 @@ impl<'c> State<'c> {
         }
         // The sonar's and the DVL's frames, for their mountings in the
         // static transforms.
-        let frame_of = |stream: Stream| {
-            chosen[stream as usize].as_ref().and_then(|name| {
-                self.topics
-                    .iter()
-                    .find(|(n, _)| n == name)
-                    .and_then(|(_, t)| t.frame_id.clone())
-            })
-        };
-        let sonar_frame = frame_of(Stream::Beam);
-        let dvl_frame = frame_of(Stream::Dvl);
-        let mut mission = Mission::default();
-        let mut uses = Vec::with_capacity(self.topics.len());
-        let mut static_transforms: Vec<Transform> = Vec::new();
-        let mut tf_use = None;
-        let mut tf_dynamic_use = None;
+        let frames = self.frames(&chosen);
         let constant_tf: Vec<Transform> = self.tf_pairs.constant().cloned().collect();
+        let context = assemble::TopicContext {
+            chosen: &chosen,
+            choice: self.choice,
+            constant_tf: &constant_tf,
+            tf_pairs: self.tf_pairs.pairs(),
+        };
+        let mut gathered = assemble::Gathered::default();
         for (name, topic) in self.topics {
-            let used = (0..4)
-                .find(|&s| chosen[s].as_deref() == Some(name.as_str()))
-                .map(stream_of);
-            let default_stream = topic.decoder.and_then(Decoder::stream);
-            let is_tf = matches!(topic.decoder, Some(Decoder::Ros(MessageType::TfMessage, _)));
-            let reason = match (used, default_stream) {
-                (Some(s), _) if self.choice.topics[s as usize].is_some() => {
-                    format!("chosen with --topic {}", ROLES[s as usize])
-                }
-                (Some(_), _) => "the only topic of its type".to_string(),
-                (None, Some(s)) if chosen_elsewhere(self.choice, &name, s as usize) => {
-                    "chosen for another role".to_string()
-                }
-                (None, Some(s)) => format!(
-                    "another topic feeds the {} (`{}`)",
-                    STREAM_NAMES[s as usize],
-                    chosen[s as usize].as_deref().unwrap_or("")
-                ),
-                (None, None) if is_tf && name == TF_STATIC => String::new(),
-                (None, None) if is_tf && name == TF && !constant_tf.is_empty() => format!(
-                    "{} of its {} frame pairs never change: read as static transforms",
-                    constant_tf.len(),
-                    self.tf_pairs.pairs()
-                ),
-                (None, None) if is_tf => format!(
-                    "dynamic transforms are not read (the mountings come from {TF_STATIC}, or from {TF} pairs that never change)"
-                ),
-                (None, None) if topic.schema.is_empty() => "no schema".to_string(),
-                (None, None) => format!("type `{}` is not one echofield reads", topic.schema),
-            };
-            for record in topic.records {
-                match (record, used) {
-                    (Decoded::Transforms(t), _) if is_tf && name == TF_STATIC => {
-                        static_transforms.extend(t)
-                    }
-                    (_, None) => {}
-                    (Decoded::Beams(b), _) => mission.beams.extend(b),
-                    (Decoded::Dvl(d), _) => mission.dvl.push(d),
-                    (Decoded::Attitude(a), _) => mission.attitude.push(a),
-                    (Decoded::GroundTruth(g), _) => mission.ground_truth.push(g),
-                    (Decoded::Odometry(_, d), Some(Stream::Dvl)) => mission.dvl.push(d),
-                    (Decoded::Odometry(g, _), _) => mission.ground_truth.push(g),
-                    (Decoded::Transforms(_), _) => {}
-                }
-            }
-            if is_tf && name == TF_STATIC {
-                tf_use = Some(uses.len());
-            }
-            if is_tf && name == TF && !constant_tf.is_empty() {
-                tf_dynamic_use = Some(uses.len());
-            }
-            uses.push(ChannelUse {
-                topic: name,
-                schema: topic.schema,
-                role: used.map(|s| ROLES[s as usize]),
-                reason,
-                messages: topic.messages,
-            });
+            gathered.add_topic(name, topic, &context);
         }
-        match self.metadata {
-            Some((name, mounting)) => {
-                mission.name = name;
-                mission.mounting = mounting;
-                if let Some(i) = tf_use {
-                    uses[i].reason = "the file's echofield metadata gives the mounting".into();
-                }
+        let assemble::Gathered {
+            mut mission,
+            mut uses,
+            static_transforms,
+            tf_use,
+            tf_dynamic_use,
+        } = gathered;
+        if let Some((name, mounting)) = self.metadata {
+            mission.name = name;
+            mission.mounting = mounting;
+            if let Some(i) = tf_use {
+                uses[i].reason = "the file's echofield metadata gives the mounting".into();
             }
-            None => {
-                mission.mounting = SensorMounting::assumed_identity();
-                mission.name = self
-                    .path
-                    .file_stem()
-                    .map(|s| s.to_string_lossy().into_owned())
-                    .unwrap_or_default();
-                // `/tf` pairs that never change, after `/tf_static` (which
-                // wins for a child it has).
-                let strip = |f: &str| f.trim_start_matches('/').to_string();
-                let static_children: Vec<String> =
-                    static_transforms.iter().map(|t| strip(&t.child)).collect();
-                static_transforms.extend(
-                    constant_tf
-                        .into_iter()
-                        .filter(|t| !static_children.contains(&strip(&t.child))),
-                );
-                if let Some(i) = tf_use.or(tf_dynamic_use) {
-                    let found = sonar_frame
-                        .as_deref()
-                        .and_then(|f| tf::mounting_of(&static_transforms, f));
-                    let sonar = match (&found, sonar_frame.as_deref()) {
-                        (Some(m), _) => {
-                            mission.mounting = m.apply(&mission.mounting);
-                            uses[i].role = Some("mounting");
-                            m.describe()
-                        }
-                        (None, Some(frame)) => format!(
-                            "no static transform has the sonar frame `{frame}` as child: mounting unknown"
-                        ),
-                        (None, None) => "no sonar topic names its frame: mounting unknown".into(),
-                    };
-                    uses[i].reason = if uses[i].reason.is_empty() {
-                        sonar
-                    } else {
-                        format!("{}; {sonar}", uses[i].reason)
-                    };
-                    // The DVL's position and yaw on the vehicle, for the
-                    // dead reckoning's lever-arm compensation.
-                    let dvl = dvl_frame
-                        .as_deref()
-                        .and_then(|f| tf::mounting_of(&static_transforms, f));
-                    let dvl_topic = chosen[Stream::Dvl as usize].as_deref();
-                    if let (Some(m), Some(topic)) = (dvl, dvl_topic) {
-                        mission.mounting.vehicle_from_dvl = m.vehicle_from_frame;
-                        uses[i].role = Some("mounting");
-                        uses[i].reason = format!("{}; {}", uses[i].reason, m.describe_dvl());
-                        if let Some(u) = uses.iter_mut().find(|u| u.topic == topic) {
-                            u.reason = format!("{}; {}", u.reason, m.describe_dvl());
-                        }
-                    }
-                }
+        } else {
+            mission.mounting = SensorMounting::assumed_identity();
+            mission.name = self
+                .path
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            if let Some(i) = tf_use.or(tf_dynamic_use) {
+                let transforms = assemble::with_constant(static_transforms, constant_tf);
+                let target = assemble::MountingTarget {
+                    mission: &mut mission,
+                    uses: &mut uses,
+                    tf_use: i,
+                };
+                target.mount_from(&transforms, &frames);
             }
         }
-        // Stable sorts: equal stamps keep their file order. Records that
-        // went backwards are counted first (a warning for the report).
-        let streams = [
-            resorted(STREAM_NAMES[0], mission.beams.iter().map(|b| b.stamp_s)),
-            resorted(STREAM_NAMES[1], mission.dvl.iter().map(|d| d.stamp_s)),
-            resorted(STREAM_NAMES[2], mission.attitude.iter().map(|a| a.stamp_s)),
-            resorted(
-                STREAM_NAMES[3],
-                mission.ground_truth.iter().map(|g| g.stamp_s),
-            ),
-        ];
-        mission.warnings.extend(streams.into_iter().flatten());
-        mission
-            .beams
-            .sort_by(|a, b| a.stamp_s.total_cmp(&b.stamp_s));
-        mission.dvl.sort_by(|a, b| a.stamp_s.total_cmp(&b.stamp_s));
-        mission
-            .attitude
-            .sort_by(|a, b| a.stamp_s.total_cmp(&b.stamp_s));
-        mission
-            .ground_truth
-            .sort_by(|a, b| a.stamp_s.total_cmp(&b.stamp_s));
+        assemble::sort_streams(&mut mission);
         Ok((mission, uses))
+    }
+
+    /// The frames of the chosen sonar and DVL topics.
+    fn frames(&self, chosen: &[Option<String>; 4]) -> assemble::Frames {
+        assemble::Frames {
+            sonar: self.frame_of(chosen, Stream::Beam),
+            dvl: self.frame_of(chosen, Stream::Dvl),
+            dvl_topic: chosen[Stream::Dvl as usize].clone(),
+        }
+    }
+
+    /// `header.frame_id` of the first decoded message of the topic chosen
+    /// for `stream`, if any.
+    fn frame_of(&self, chosen: &[Option<String>; 4], stream: Stream) -> Option<String> {
+        chosen[stream as usize].as_ref().and_then(|name| {
+            self.topics
+                .iter()
+                .find(|(n, _)| n == name)
+                .and_then(|(_, t)| t.frame_id.clone())
+        })
     }
 
     /// The topic of each stream: the chosen one (which must exist and be of

@@ -62,58 +62,86 @@ pub fn storage_files(dir: &Path) -> Result<(Storage, Vec<PathBuf>), DatasetError
         .ok_or_else(|| {
             DatasetError::parse(&path, "document", "rosbag2_bagfile_information", "missing")
         })?;
-    let field = |name: &str, message: &str| {
-        DatasetError::parse(&path, "rosbag2_bagfile_information", name, message)
+    let metadata = Metadata {
+        dir,
+        path: &path,
+        info,
     };
-    let storage = info["storage_identifier"]
-        .as_str()
-        .ok_or_else(|| field("storage_identifier", "missing or not a string"))?;
-    let storage = match storage {
-        "mcap" => Storage::Mcap,
-        "sqlite3" => Storage::Sqlite3,
-        _ => {
-            return Err(field(
-                "storage_identifier",
-                &format!(
-                    "`{storage}` storage is not read (mcap and sqlite3 are); convert the recording to MCAP with \
+    let storage = metadata.storage()?;
+    Ok((storage, metadata.files()?))
+}
+
+/// The `rosbag2_bagfile_information` of `path` in the folder `dir`.
+struct Metadata<'a> {
+    dir: &'a Path,
+    path: &'a Path,
+    info: &'a Yaml,
+}
+
+impl Metadata<'_> {
+    fn field(&self, name: &str, message: &str) -> DatasetError {
+        DatasetError::parse(self.path, "rosbag2_bagfile_information", name, message)
+    }
+
+    /// The storage (MCAP or sqlite3); an error for another, or for
+    /// whole-file compression.
+    fn storage(&self) -> Result<Storage, DatasetError> {
+        let info = self.info;
+        let storage = info["storage_identifier"]
+            .as_str()
+            .ok_or_else(|| self.field("storage_identifier", "missing or not a string"))?;
+        let storage = match storage {
+            "mcap" => Storage::Mcap,
+            "sqlite3" => Storage::Sqlite3,
+            _ => {
+                return Err(self.field(
+                    "storage_identifier",
+                    &format!(
+                        "`{storage}` storage is not read (mcap and sqlite3 are); convert the recording to MCAP with \
                  `ros2 bag convert -i {} -o out.yaml` (out.yaml: `output_bags: [{{uri: bag_mcap, storage_id: mcap}}]`)",
-                    dir.display()
+                        self.dir.display()
+                    ),
+                ));
+            }
+        };
+        if let Some(mode) = info["compression_mode"].as_str()
+            && !mode.is_empty()
+            && mode != "NONE"
+        {
+            return Err(self.field(
+                "compression_mode",
+                &format!(
+                    "`{mode}` compression of whole files is not read; decompress with `ros2 bag convert`"
                 ),
             ));
         }
-    };
-    if let Some(mode) = info["compression_mode"].as_str()
-        && !mode.is_empty()
-        && mode != "NONE"
-    {
-        return Err(field(
-            "compression_mode",
-            &format!(
-                "`{mode}` compression of whole files is not read; decompress with `ros2 bag convert`"
-            ),
-        ));
+        Ok(storage)
     }
-    let Yaml::Array(files) = &info["relative_file_paths"] else {
-        return Err(field("relative_file_paths", "missing or not a list"));
-    };
-    let mut out = Vec::with_capacity(files.len());
-    for (i, file) in files.iter().enumerate() {
-        let name = file
-            .as_str()
-            .ok_or_else(|| field(&format!("relative_file_paths[{i}]"), "not a string"))?;
-        let file_path = dir.join(name);
-        if !file_path.is_file() {
-            return Err(DatasetError::Missing {
-                path: file_path,
-                what: format!("storage file listed in {}", path.display()),
-            });
+
+    /// The listed storage files, each of which must exist; at least one.
+    fn files(&self) -> Result<Vec<PathBuf>, DatasetError> {
+        let Yaml::Array(files) = &self.info["relative_file_paths"] else {
+            return Err(self.field("relative_file_paths", "missing or not a list"));
+        };
+        let mut out = Vec::with_capacity(files.len());
+        for (i, file) in files.iter().enumerate() {
+            let name = file
+                .as_str()
+                .ok_or_else(|| self.field(&format!("relative_file_paths[{i}]"), "not a string"))?;
+            let file_path = self.dir.join(name);
+            if !file_path.is_file() {
+                return Err(DatasetError::Missing {
+                    path: file_path,
+                    what: format!("storage file listed in {}", self.path.display()),
+                });
+            }
+            out.push(file_path);
         }
-        out.push(file_path);
+        if out.is_empty() {
+            return Err(self.field("relative_file_paths", "lists no file"));
+        }
+        Ok(out)
     }
-    if out.is_empty() {
-        return Err(field("relative_file_paths", "lists no file"));
-    }
-    Ok((storage, out))
 }
 
 #[cfg(test)]

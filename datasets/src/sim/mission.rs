@@ -6,10 +6,12 @@
 //! rendered in parallel with rayon and collected in index order.
 
 use super::scenario::Source;
-use super::sonar::blobs::{BlobProcess, spawn_blobs};
+use super::sonar::blobs::{Blob, BlobProcess, spawn_blobs};
 use super::{Scenario, SimError, SonarModel, navigation};
-use echofield_frontend::sensors::{GroundTruthPose, Mission, SensorMounting, SonarBeam};
-use echofield_graph::wrap_angle;
+use echofield_frontend::sensors::{
+    Attitude, DvlVelocity, GroundTruthPose, Mission, SensorMounting, SonarBeam,
+};
+use echofield_graph::{Se2, wrap_angle};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
@@ -43,7 +45,45 @@ pub fn simulate_mission(scenario: &Scenario, seed: u64) -> Result<Mission, SimEr
         },
         &mut stream_rng(seed, STREAM_BLOBS, 0),
     );
-    let (beam_stamps, dvl, attitude, vehicle_from_dvl) = match &scenario.source {
+    let (beam_stamps, dvl, attitude, vehicle_from_dvl) = navigation_records(scenario, seed);
+    let vehicle_from_sonar = config.mounting.vehicle_from_sonar;
+    let beams = render_beams(
+        scenario,
+        &sonar,
+        &blobs,
+        &beam_stamps,
+        &vehicle_from_sonar,
+        seed,
+    );
+    Ok(Mission {
+        name: format!("{} (simulated, seed {seed})", scenario.name()),
+        mounting: SensorMounting {
+            vehicle_from_sonar,
+            vehicle_from_dvl,
+            // The replay's navigation is the real, uncalibrated MTi yaw: the
+            // calibration that relates it to the true heading travels with
+            // the mission, as it would for a real vehicle.
+            heading_offset_rad: scenario.heading_offset_rad().unwrap_or(0.0),
+            ..SensorMounting::default()
+        },
+        beams,
+        dvl,
+        attitude,
+        ground_truth: ground_truth_records(scenario),
+        warnings: Default::default(),
+    })
+}
+
+/// The beam stamps (s), DVL and attitude records and the DVL's mounting
+/// `vehicle_from_dvl`: simulated along the ground truth (each from its own
+/// random stream) for a synthetic scenario, the logged ones for a replay.
+fn navigation_records(
+    scenario: &Scenario,
+    seed: u64,
+) -> (Vec<f64>, Vec<DvlVelocity>, Vec<Attitude>, Se2) {
+    let config = scenario.config();
+    let truth = scenario.ground_truth();
+    match &scenario.source {
         Source::Synthetic => {
             let stamps = synthetic_beam_stamps(scenario, seed);
             let mounting = &config.mounting;
@@ -66,20 +106,31 @@ pub fn simulate_mission(scenario: &Scenario, seed: u64) -> Result<Mission, SimEr
             data.attitude.clone(),
             data.vehicle_from_dvl,
         ),
-    };
-    let vehicle_from_sonar = config.mounting.vehicle_from_sonar;
+    }
+}
+
+/// One beam per stamp, beam `k` at angle `k · step` (wrapped), rendered in
+/// parallel from the true pose at its own time (the vehicle moves during
+/// the rotation), each with its own random stream.
+fn render_beams(
+    scenario: &Scenario,
+    sonar: &SonarModel,
+    blobs: &[Blob],
+    beam_stamps: &[f64],
+    vehicle_from_sonar: &Se2,
+    seed: u64,
+) -> Vec<SonarBeam> {
+    let truth = scenario.ground_truth();
     let step = sonar.config().step_rad();
     let bin_size_m = sonar.config().bin_size_m;
     let env = scenario.environment();
-    let beams: Vec<SonarBeam> = beam_stamps
+    beam_stamps
         .par_iter()
         .enumerate()
         .map(|(k, &stamp_s)| {
             let mut rng = stream_rng(seed, STREAM_BEAM, k as u64);
             let angle_rad = wrap_angle(k as f64 * step);
-            // The vehicle moves during the rotation: each beam is cast from
-            // the pose at its own time.
-            let world_from_sonar = truth.pose_at(stamp_s).compose(&vehicle_from_sonar);
+            let world_from_sonar = truth.pose_at(stamp_s).compose(vehicle_from_sonar);
             SonarBeam {
                 stamp_s,
                 angle_rad,
@@ -87,7 +138,7 @@ pub fn simulate_mission(scenario: &Scenario, seed: u64) -> Result<Mission, SimEr
                 first_bin_range_m: 0.0,
                 intensities: sonar.render_beam(
                     env,
-                    &blobs,
+                    blobs,
                     &world_from_sonar,
                     angle_rad,
                     stamp_s,
@@ -95,24 +146,7 @@ pub fn simulate_mission(scenario: &Scenario, seed: u64) -> Result<Mission, SimEr
                 ),
             }
         })
-        .collect();
-    Ok(Mission {
-        name: format!("{} (simulated, seed {seed})", scenario.name()),
-        mounting: SensorMounting {
-            vehicle_from_sonar,
-            vehicle_from_dvl,
-            // The replay's navigation is the real, uncalibrated MTi yaw: the
-            // calibration that relates it to the true heading travels with
-            // the mission, as it would for a real vehicle.
-            heading_offset_rad: scenario.heading_offset_rad().unwrap_or(0.0),
-            ..SensorMounting::default()
-        },
-        beams,
-        dvl,
-        attitude,
-        ground_truth: ground_truth_records(scenario),
-        warnings: Default::default(),
-    })
+        .collect()
 }
 
 /// Beam times on the nominal grid of the head from the start of the ground

@@ -164,8 +164,14 @@ impl SonarSimConfig {
         if !(1..=255).contains(&self.sub_rays) {
             return Err(SimError::config("sonar.sub_rays", "must lie in [1, 255]"));
         }
+        super::config::check_ranges(&self.ranges())
+    }
+
+    /// Each real-valued setting with its name and allowed range
+    /// `[min, max]`, for [`SonarSimConfig::validate`].
+    fn ranges(&self) -> Vec<(&'static str, f64, f64, f64)> {
         let pi = std::f64::consts::PI;
-        super::config::check_ranges(&[
+        vec![
             ("sonar.beam_period_s", self.beam_period_s, 1e-4, 10.0),
             (
                 "sonar.beam_time_jitter_s",
@@ -217,7 +223,7 @@ impl SonarSimConfig {
             ("sonar.blob_rate_per_min", self.blob_rate_per_min, 0.0, 1e3),
             ("sonar.blob_lifetime_s", self.blob_lifetime_s, 1e-3, 1e5),
             ("sonar.blob_snr_db", self.blob_snr_db, 0.0, 200.0),
-        ])
+        ]
     }
 }
 

@@ -13,7 +13,7 @@ pub mod map;
 pub mod track;
 
 use super::{Environment, SimError, SonarSimConfig, Trajectory};
-use crate::stpere::{StPereLogs, best_yaw_offset};
+use crate::stpere::{SonarSetup, StPereLogs, best_yaw_offset};
 use echofield_frontend::sensors::{Attitude, DvlVelocity};
 use echofield_graph::Se2;
 use map::MapShape;
@@ -149,25 +149,8 @@ pub fn prepare_replay(
         (first, last),
         1.0 / TRACK_RATE_HZ,
     )?;
-    let environment = map::marina_around_track(
-        &ground_truth,
-        &MapShape {
-            wall_distance_m: config.wall_distance_m,
-            wall_distance_variation_m: config.wall_distance_variation_m,
-            clutter_objects: config.clutter_objects,
-        },
-    )?;
-    let sonar = SonarSimConfig {
-        steps_per_rotation: (2.0 * std::f64::consts::PI / setup.step_rad).round() as u32,
-        beam_period_s: median_interval(&beam_stamps_s).unwrap_or(sonar.beam_period_s),
-        beam_time_jitter_s: 0.0,
-        bins: setup.bins(),
-        bin_size_m: setup.bin_size_m,
-        ..sonar.clone()
-    };
-    sonar
-        .validate()
-        .map_err(|e| SimError::config("St Pere _SETUP.log", e.to_string()))?;
+    let environment = map::marina_around_track(&ground_truth, &config.map_shape())?;
+    let sonar = logged_head(sonar, setup, &beam_stamps_s)?;
     let data = ReplayData {
         dvl: logs.mission.dvl.clone(),
         attitude: logs.mission.attitude.clone(),
@@ -178,6 +161,40 @@ pub fn prepare_replay(
         heading_offset_rad,
     };
     Ok((data, ground_truth, environment))
+}
+
+/// `sonar` with the head settings of the log: steps per turn and bins
+/// from the setup, the beam period from the median interval of the stamps
+/// (`sonar`'s when there is none), no jitter. Errors when those settings
+/// are not a valid simulator head.
+fn logged_head(
+    sonar: &SonarSimConfig,
+    setup: &SonarSetup,
+    beam_stamps_s: &[f64],
+) -> Result<SonarSimConfig, SimError> {
+    let sonar = SonarSimConfig {
+        steps_per_rotation: (2.0 * std::f64::consts::PI / setup.step_rad).round() as u32,
+        beam_period_s: median_interval(beam_stamps_s).unwrap_or(sonar.beam_period_s),
+        beam_time_jitter_s: 0.0,
+        bins: setup.bins(),
+        bin_size_m: setup.bin_size_m,
+        ..sonar.clone()
+    };
+    sonar
+        .validate()
+        .map_err(|e| SimError::config("St Pere _SETUP.log", e.to_string()))?;
+    Ok(sonar)
+}
+
+impl ReplayConfig {
+    /// The shape of the marina drawn around the track.
+    fn map_shape(&self) -> MapShape {
+        MapShape {
+            wall_distance_m: self.wall_distance_m,
+            wall_distance_variation_m: self.wall_distance_variation_m,
+            clutter_objects: self.clutter_objects,
+        }
+    }
 }
 
 fn median_interval(stamps: &[f64]) -> Option<f64> {

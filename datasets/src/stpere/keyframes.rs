@@ -32,10 +32,13 @@
 //! `N` beam stamps or does not start on one, rotations out of order or
 //! overlapping, a missing PCD file.
 
+mod pcd;
+
 use super::sonar::{BeamStamp, SonarSetup};
 use crate::error::DatasetError;
 use echofield_frontend::sensors::{SonarBeam, SweepTiming};
 use echofield_graph::wrap_angle;
+use pcd::{Point, read_pcd};
 use std::path::Path;
 
 /// Intensity (0-255) given to a bin that holds a point.
@@ -80,18 +83,7 @@ pub fn read_keyframes(
     stamps: &[BeamStamp],
     sweep: SweepTiming,
 ) -> Result<KeyframeBeams, DatasetError> {
-    let direction = match sweep {
-        SweepTiming::AngleIncreasing => 1i64,
-        SweepTiming::AngleDecreasing => -1,
-        SweepTiming::Logged => {
-            return Err(DatasetError::Format {
-                path: dir.to_path_buf(),
-                message: "point sets carry no beam times: the sweep must be assumed \
-                          (angle_increasing or angle_decreasing)"
-                    .into(),
-            });
-        }
-    };
+    let direction = sweep_direction(sweep, dir)?;
     let steps = steps_per_turn(setup, dir)?;
     let csv_path = dir.join(KEYFRAME_CSV);
     let spans = read_spans(&csv_path)?;
@@ -107,22 +99,7 @@ pub fn read_keyframes(
         let first = first_stamp(&csv_path, span, stamps, steps)?;
         let pcd_path = dir.join(format!("pclKeyFrame{}.pcd", span.keyframe));
         let points = read_pcd(&pcd_path)?;
-        let mut rotation_beams: Vec<SonarBeam> = (0..steps)
-            .map(|j| {
-                let angle_index = (direction * j as i64).rem_euclid(steps as i64);
-                SonarBeam {
-                    stamp_s: stamps[first + j].stamp_s,
-                    // One turn in `steps` equal steps: the setup's step is
-                    // 2π/N rounded to 7 digits.
-                    angle_rad: wrap_angle(
-                        angle_index as f64 * std::f64::consts::TAU / steps as f64,
-                    ),
-                    bin_size_m: setup.bin_size_m,
-                    first_bin_range_m: 0.0,
-                    intensities: vec![0; setup.bins()],
-                }
-            })
-            .collect();
+        let mut rotation_beams = empty_beams(setup, &stamps[first..first + steps], direction);
         for point in &points {
             let (angle_index, bin) = grid_cell(&pcd_path, point, setup, steps)?;
             // Time index of the beam at `angle_index · step` under `direction`.
@@ -148,6 +125,43 @@ pub fn read_keyframes(
     })
 }
 
+/// +1 when the angle increases with time, -1 when it decreases; an error
+/// for [`SweepTiming::Logged`] (point sets carry no beam times).
+fn sweep_direction(sweep: SweepTiming, dir: &Path) -> Result<i64, DatasetError> {
+    match sweep {
+        SweepTiming::AngleIncreasing => Ok(1),
+        SweepTiming::AngleDecreasing => Ok(-1),
+        SweepTiming::Logged => Err(DatasetError::Format {
+            path: dir.to_path_buf(),
+            message: "point sets carry no beam times: the sweep must be assumed \
+                      (angle_increasing or angle_decreasing)"
+                .into(),
+        }),
+    }
+}
+
+/// One beam per stamp of `stamps` (one turn of `N = stamps.len()` steps),
+/// without echoes; beam `j` at angle index `direction · j` mod `N`.
+fn empty_beams(setup: &SonarSetup, stamps: &[BeamStamp], direction: i64) -> Vec<SonarBeam> {
+    let steps = stamps.len();
+    stamps
+        .iter()
+        .enumerate()
+        .map(|(j, stamp)| {
+            let angle_index = (direction * j as i64).rem_euclid(steps as i64);
+            SonarBeam {
+                stamp_s: stamp.stamp_s,
+                // One turn in `steps` equal steps: the setup's step is
+                // 2π/N rounded to 7 digits.
+                angle_rad: wrap_angle(angle_index as f64 * std::f64::consts::TAU / steps as f64),
+                bin_size_m: setup.bin_size_m,
+                first_bin_range_m: 0.0,
+                intensities: vec![0; setup.bins()],
+            }
+        })
+        .collect()
+}
+
 /// `N = 2π / step`, which must be a whole number of steps.
 fn steps_per_turn(setup: &SonarSetup, dir: &Path) -> Result<usize, DatasetError> {
     let steps = std::f64::consts::TAU / setup.step_rad;
@@ -171,6 +185,13 @@ struct Span {
     end_s: f64,
 }
 
+/// The CSV's columns, in order.
+const COLUMNS: [&str; 3] = ["keyFrame", "keyFrameBeginning", "keyFrameEnd"];
+
+/// Reads the rotations of `keyFrameTimeStamps.csv`. Errors name the line
+/// and column: a header other than [`COLUMNS`], a value that is not a
+/// rotation number or a time, a rotation that ends before it begins, does
+/// not follow the one before or begins before it ends (10 ms of slack).
 fn read_spans(path: &Path) -> Result<Vec<Span>, DatasetError> {
     let file = std::fs::File::open(path).map_err(|e| DatasetError::io(path, e))?;
     let mut reader = csv::ReaderBuilder::new()
@@ -182,7 +203,6 @@ fn read_spans(path: &Path) -> Result<Vec<Span>, DatasetError> {
         .iter()
         .map(str::to_string)
         .collect::<Vec<_>>();
-    const COLUMNS: [&str; 3] = ["keyFrame", "keyFrameBeginning", "keyFrameEnd"];
     if header != COLUMNS {
         return Err(DatasetError::parse(
             path,
@@ -194,60 +214,70 @@ fn read_spans(path: &Path) -> Result<Vec<Span>, DatasetError> {
     let mut spans: Vec<Span> = Vec::new();
     for record in reader.records() {
         let record = record.map_err(|e| csv_error(path, &e))?;
-        let line = record.position().map_or(0, |p| p.line());
-        let field = |i: usize| -> Result<&str, DatasetError> {
-            record.get(i).ok_or_else(|| {
-                DatasetError::parse(path, format!("line {line}"), COLUMNS[i], "missing")
-            })
-        };
-        let bad = |i: usize, message: String| {
-            DatasetError::parse(path, format!("line {line}"), COLUMNS[i], message)
-        };
-        let keyframe: u64 = field(0)?.parse().map_err(|_| {
-            bad(
-                0,
-                format!("`{}` is not a rotation number", field(0).unwrap_or("")),
-            )
-        })?;
-        let time = |i: usize| -> Result<f64, DatasetError> {
-            let text = field(i)?;
-            match text.parse::<f64>() {
-                Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
-                _ => Err(bad(i, format!("`{text}` is not a time in seconds"))),
-            }
-        };
-        let (begin_s, end_s) = (time(1)?, time(2)?);
-        if end_s <= begin_s {
-            return Err(bad(
-                2,
-                format!("{end_s} is not after the beginning {begin_s}"),
-            ));
-        }
-        if let Some(prev) = spans.last() {
-            if keyframe <= prev.keyframe {
-                return Err(bad(
-                    0,
-                    format!("{keyframe} does not follow {}", prev.keyframe),
-                ));
-            }
-            if begin_s < prev.end_s - 0.01 {
-                return Err(bad(
-                    1,
-                    format!(
-                        "rotation {keyframe} begins before rotation {} ends",
-                        prev.keyframe
-                    ),
-                ));
-            }
-        }
-        spans.push(Span {
-            line,
-            keyframe,
-            begin_s,
-            end_s,
-        });
+        let span = parse_span(path, &record, spans.last())?;
+        spans.push(span);
     }
     Ok(spans)
+}
+
+/// One CSV row, checked against the row before it (`prev`).
+fn parse_span(
+    path: &Path,
+    record: &csv::StringRecord,
+    prev: Option<&Span>,
+) -> Result<Span, DatasetError> {
+    let line = record.position().map_or(0, |p| p.line());
+    let field = |i: usize| -> Result<&str, DatasetError> {
+        record
+            .get(i)
+            .ok_or_else(|| DatasetError::parse(path, format!("line {line}"), COLUMNS[i], "missing"))
+    };
+    let bad = |i: usize, message: String| {
+        DatasetError::parse(path, format!("line {line}"), COLUMNS[i], message)
+    };
+    let keyframe: u64 = field(0)?.parse().map_err(|_| {
+        bad(
+            0,
+            format!("`{}` is not a rotation number", field(0).unwrap_or("")),
+        )
+    })?;
+    let time = |i: usize| -> Result<f64, DatasetError> {
+        let text = field(i)?;
+        match text.parse::<f64>() {
+            Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
+            _ => Err(bad(i, format!("`{text}` is not a time in seconds"))),
+        }
+    };
+    let (begin_s, end_s) = (time(1)?, time(2)?);
+    if end_s <= begin_s {
+        return Err(bad(
+            2,
+            format!("{end_s} is not after the beginning {begin_s}"),
+        ));
+    }
+    if let Some(prev) = prev {
+        if keyframe <= prev.keyframe {
+            return Err(bad(
+                0,
+                format!("{keyframe} does not follow {}", prev.keyframe),
+            ));
+        }
+        if begin_s < prev.end_s - 0.01 {
+            return Err(bad(
+                1,
+                format!(
+                    "rotation {keyframe} begins before rotation {} ends",
+                    prev.keyframe
+                ),
+            ));
+        }
+    }
+    Ok(Span {
+        line,
+        keyframe,
+        begin_s,
+        end_s,
+    })
 }
 
 fn csv_error(path: &Path, e: &csv::Error) -> DatasetError {
@@ -296,13 +326,6 @@ fn first_stamp(
     Ok(first)
 }
 
-/// A point of a PCD file with its line.
-struct Point {
-    line: usize,
-    x: f64,
-    y: f64,
-}
-
 /// `(angle index 0..steps, bin)` of a point; an error names the point's
 /// line when it is off either grid.
 fn grid_cell(
@@ -345,124 +368,6 @@ fn grid_cell(
     }
     let angle_index = (angle_steps.round() as i64).rem_euclid(steps as i64) as usize;
     Ok((angle_index, bin_end as usize - 1))
-}
-
-/// Reads an ASCII PCD v0.7 file with fields `x y z`.
-///
-/// Written here rather than taken from a PCD crate: only this one layout
-/// is accepted, and every rejection must name the line and the field.
-fn read_pcd(path: &Path) -> Result<Vec<Point>, DatasetError> {
-    let bytes = std::fs::read(path).map_err(|e| DatasetError::io(path, e))?;
-    let text = std::str::from_utf8(&bytes).map_err(|e| {
-        let offset = e.valid_up_to();
-        let line = bytes[..offset].iter().filter(|&&b| b == b'\n').count() + 1;
-        DatasetError::parse(
-            path,
-            format!("line {line}"),
-            "text",
-            format!("invalid UTF-8 at byte {offset}: a PCD header and ASCII data are expected"),
-        )
-    })?;
-    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
-    let mut declared_points: Option<usize> = None;
-    let mut lines = text.lines().enumerate().map(|(i, l)| (i + 1, l.trim()));
-    let err = |line: usize, field: &str, message: String| {
-        DatasetError::parse(path, format!("line {line}"), field, message)
-    };
-    // Header: `KEY value...` lines up to and including `DATA`.
-    loop {
-        let Some((line, content)) = lines.next() else {
-            return Err(DatasetError::Format {
-                path: path.to_path_buf(),
-                message: "the header ends without a DATA line".into(),
-            });
-        };
-        if content.is_empty() || content.starts_with('#') {
-            continue;
-        }
-        let mut words = content.split_whitespace();
-        let key = words.next().unwrap_or_default();
-        let values: Vec<&str> = words.collect();
-        match key {
-            "FIELDS" if values != ["x", "y", "z"] => {
-                return Err(err(
-                    line,
-                    "FIELDS",
-                    format!("`{}`: only `x y z` point sets are read", values.join(" ")),
-                ));
-            }
-            "COUNT" if values.iter().any(|&v| v != "1") => {
-                return Err(err(line, "COUNT", "every field must have count 1".into()));
-            }
-            "POINTS" => {
-                let n = values
-                    .first()
-                    .and_then(|v| v.parse().ok())
-                    .ok_or_else(|| err(line, "POINTS", "not a point count".into()))?;
-                declared_points = Some(n);
-            }
-            "DATA" => {
-                if values != ["ascii"] {
-                    return Err(err(
-                        line,
-                        "DATA",
-                        format!(
-                            "`{}`: only ASCII PCD files are read (convert binary ones with \
-                             `pcl_convert_pcd_ascii_binary IN OUT 0`)",
-                            values.join(" ")
-                        ),
-                    ));
-                }
-                break;
-            }
-            _ => {}
-        }
-    }
-    let declared = declared_points.ok_or_else(|| DatasetError::Format {
-        path: path.to_path_buf(),
-        message: "the header has no POINTS line".into(),
-    })?;
-    // The declared count is only trusted as far as the file could hold it
-    // (a point takes at least six bytes): a corrupted POINTS line must not
-    // reserve memory the data cannot fill.
-    let mut points = Vec::with_capacity(declared.min(bytes.len() / 6));
-    for (line, content) in lines {
-        if content.is_empty() {
-            continue;
-        }
-        let fields: Vec<&str> = content.split_whitespace().collect();
-        if fields.len() != 3 {
-            return Err(err(
-                line,
-                "x y z",
-                format!("{} values, expected 3", fields.len()),
-            ));
-        }
-        let value = |i: usize| -> Result<f64, DatasetError> {
-            let name = ["x", "y", "z"][i];
-            match fields[i].parse::<f64>() {
-                Ok(v) if v.is_finite() => Ok(v),
-                _ => Err(err(
-                    line,
-                    name,
-                    format!("`{}` is not a finite number", fields[i]),
-                )),
-            }
-        };
-        let (x, y) = (value(0)?, value(1)?);
-        value(2)?;
-        points.push(Point { line, x, y });
-    }
-    if points.len() != declared {
-        return Err(DatasetError::Format {
-            path: path.to_path_buf(),
-            message: format!(
-                "the header declares {declared} points, the data holds {} (a truncated file?)",
-                points.len()
-            ),
-        });
-    }
-    Ok(points)
 }
 
 #[cfg(test)]

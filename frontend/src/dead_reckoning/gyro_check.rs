@@ -74,6 +74,35 @@ pub struct YawRateCheck {
 /// `window_s`) have a yaw rate at every sample and no gap, e.g. a unit
 /// without yaw rates. `attitude` is in time order (checked by the filter).
 pub fn check(attitude: &[Attitude], window_s: f64) -> Option<YawRateCheck> {
+    let dt = median_interval(attitude)?;
+    let steps = step_disagreements(attitude, MAX_GAP_INTERVALS * dt);
+    let one: Vec<f64> = steps.iter().flatten().map(|(_, e)| e * e).collect();
+    if one.len() < MIN_WINDOWS {
+        return None;
+    }
+    let heading_var = 0.5 * one.iter().sum::<f64>() / one.len() as f64;
+    // ... summed over consecutive windows of about `window_s`.
+    let per_window = ((window_s / dt).round() as usize).max(1);
+    let windows = WindowMoments::of(&steps, per_window);
+    if windows.count < MIN_WINDOWS {
+        return None;
+    }
+    let n = windows.count as f64;
+    let mean_e2 = windows.sum_e2 / n;
+    let standard_error = ((windows.sum_e4 / n - mean_e2 * mean_e2).max(0.0) / n).sqrt();
+    let excess = mean_e2 - 2.0 * heading_var - CONFIDENCE_SIGMAS * standard_error;
+    let rate_var = excess.max(0.0) / (dt * windows.sum_span / n);
+    Some(YawRateCheck {
+        sample_interval_s: dt,
+        heading_noise_rad: heading_var.sqrt(),
+        disagreement_rad: mean_e2.sqrt(),
+        yaw_rate_noise_radps: rate_var.sqrt(),
+    })
+}
+
+/// The median of the positive intervals between attitude samples, s;
+/// `None` with fewer than `MIN_WINDOWS` of them.
+fn median_interval(attitude: &[Attitude]) -> Option<f64> {
     let mut intervals: Vec<f64> = attitude
         .windows(2)
         .map(|w| w[1].stamp_s - w[0].stamp_s)
@@ -83,56 +112,59 @@ pub fn check(attitude: &[Attitude], window_s: f64) -> Option<YawRateCheck> {
         return None;
     }
     let mid = intervals.len() / 2;
-    let dt = *intervals.select_nth_unstable_by(mid, f64::total_cmp).1;
-    let max_gap = MAX_GAP_INTERVALS * dt;
-    // The disagreement of each sample interval (None across a gap or where
-    // a rate is missing) ...
-    let steps: Vec<Option<(f64, f64)>> = attitude
+    Some(*intervals.select_nth_unstable_by(mid, f64::total_cmp).1)
+}
+
+/// The disagreement `e` of each sample interval with its span, s (`None`
+/// across a gap longer than `max_gap_s` or where a rate is missing): the
+/// heading change less the trapezoidal integral of the yaw rates, rad.
+fn step_disagreements(attitude: &[Attitude], max_gap_s: f64) -> Vec<Option<(f64, f64)>> {
+    attitude
         .windows(2)
         .map(|w| {
             let span = w[1].stamp_s - w[0].stamp_s;
             let (a, b) = (w[0].yaw_rate_radps?, w[1].yaw_rate_radps?);
-            (span > 0.0 && span <= max_gap).then(|| {
+            (span > 0.0 && span <= max_gap_s).then(|| {
                 (
                     span,
                     wrap_angle(w[1].yaw_rad - w[0].yaw_rad) - 0.5 * (a + b) * span,
                 )
             })
         })
-        .collect();
-    let one: Vec<f64> = steps.iter().flatten().map(|(_, e)| e * e).collect();
-    if one.len() < MIN_WINDOWS {
-        return None;
+        .collect()
+}
+
+/// Sums over the complete windows of `per_window` consecutive steps (those
+/// without a missing step) of the window's disagreement `e`: Σe², Σe⁴, the
+/// summed spans (s) and the window count.
+struct WindowMoments {
+    sum_e2: f64,
+    sum_e4: f64,
+    sum_span: f64,
+    count: usize,
+}
+
+impl WindowMoments {
+    fn of(steps: &[Option<(f64, f64)>], per_window: usize) -> Self {
+        let (mut sum_e2, mut sum_e4, mut sum_span, mut count) = (0.0, 0.0, 0.0, 0usize);
+        for chunk in steps.chunks_exact(per_window) {
+            let Some((span, e)) = chunk.iter().try_fold((0.0, 0.0), |(s, e), step| {
+                step.map(|(ds, de)| (s + ds, e + de))
+            }) else {
+                continue;
+            };
+            sum_e2 += e * e;
+            sum_e4 += e.powi(4);
+            sum_span += span;
+            count += 1;
+        }
+        Self {
+            sum_e2,
+            sum_e4,
+            sum_span,
+            count,
+        }
     }
-    let heading_var = 0.5 * one.iter().sum::<f64>() / one.len() as f64;
-    // ... summed over consecutive windows of about `window_s`.
-    let per_window = ((window_s / dt).round() as usize).max(1);
-    let (mut sum_e2, mut sum_e4, mut sum_span, mut count) = (0.0, 0.0, 0.0, 0usize);
-    for chunk in steps.chunks_exact(per_window) {
-        let Some((span, e)) = chunk.iter().try_fold((0.0, 0.0), |(s, e), step| {
-            step.map(|(ds, de)| (s + ds, e + de))
-        }) else {
-            continue;
-        };
-        sum_e2 += e * e;
-        sum_e4 += e.powi(4);
-        sum_span += span;
-        count += 1;
-    }
-    if count < MIN_WINDOWS {
-        return None;
-    }
-    let n = count as f64;
-    let mean_e2 = sum_e2 / n;
-    let standard_error = ((sum_e4 / n - mean_e2 * mean_e2).max(0.0) / n).sqrt();
-    let excess = mean_e2 - 2.0 * heading_var - CONFIDENCE_SIGMAS * standard_error;
-    let rate_var = excess.max(0.0) / (dt * sum_span / n);
-    Some(YawRateCheck {
-        sample_interval_s: dt,
-        heading_noise_rad: heading_var.sqrt(),
-        disagreement_rad: mean_e2.sqrt(),
-        yaw_rate_noise_radps: rate_var.sqrt(),
-    })
 }
 
 #[cfg(test)]

@@ -161,28 +161,7 @@ impl Navigation {
         poses: &[Se2],
         max_extrapolation_s: f64,
     ) -> Result<Self, FrontendError> {
-        if stamps_s.len() != poses.len() || stamps_s.is_empty() {
-            return Err(FrontendError::insufficient(
-                "navigation from poses",
-                format!("{} stamps and {} poses", stamps_s.len(), poses.len()),
-            ));
-        }
-        for (i, (&t, pose)) in stamps_s.iter().zip(poses).enumerate() {
-            if !t.is_finite() || (i > 0 && t <= stamps_s[i - 1]) {
-                return Err(FrontendError::input(
-                    format!("pose {i}"),
-                    "stamp_s",
-                    "not finite or not increasing",
-                ));
-            }
-            if !pose.is_finite() {
-                return Err(FrontendError::input(
-                    format!("pose {i}"),
-                    "pose",
-                    "not finite",
-                ));
-            }
-        }
+        check_poses(stamps_s, poses)?;
         let twist = |k: usize| -> (Vector2<f64>, f64) {
             if stamps_s.len() < 2 {
                 return (Vector2::zeros(), 0.0);
@@ -460,4 +439,33 @@ impl Navigation {
 
 pub(crate) fn symmetric(m: Matrix3<f64>) -> Matrix3<f64> {
     (m + m.transpose()) * 0.5
+}
+
+/// The input of [`Navigation::from_poses`]: as many stamps as poses, at
+/// least one; stamps finite and increasing, poses finite. Errors name the
+/// pose and field.
+fn check_poses(stamps_s: &[f64], poses: &[Se2]) -> Result<(), FrontendError> {
+    if stamps_s.len() != poses.len() || stamps_s.is_empty() {
+        return Err(FrontendError::insufficient(
+            "navigation from poses",
+            format!("{} stamps and {} poses", stamps_s.len(), poses.len()),
+        ));
+    }
+    for (i, (&t, pose)) in stamps_s.iter().zip(poses).enumerate() {
+        if !t.is_finite() || (i > 0 && t <= stamps_s[i - 1]) {
+            return Err(FrontendError::input(
+                format!("pose {i}"),
+                "stamp_s",
+                "not finite or not increasing",
+            ));
+        }
+        if !pose.is_finite() {
+            return Err(FrontendError::input(
+                format!("pose {i}"),
+                "pose",
+                "not finite",
+            ));
+        }
+    }
+    Ok(())
 }

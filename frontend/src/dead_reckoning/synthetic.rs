@@ -128,69 +128,10 @@ impl Default for SyntheticNavConfig {
 /// if a noise standard deviation is negative or not finite.
 pub fn synthetic_mission(path: &SyntheticPath, config: &SyntheticNavConfig, seed: u64) -> Mission {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let normal = |sigma: f64| Normal::new(0.0, sigma).expect("finite non-negative sigma");
-    let (dvl_noise, heading_noise, rate_noise) = (
-        normal(config.dvl_noise_mps),
-        normal(config.heading_noise_rad),
-        normal(config.yaw_rate_noise_radps),
-    );
-    let samples = |period_s: f64| {
-        (0..=(config.duration_s / period_s).floor() as usize).map(move |i| i as f64 * period_s)
-    };
-
-    let w = path.yaw_rate_radps();
-    let vehicle_from_dvl = &config.mounting.vehicle_from_dvl;
-    let lever = vehicle_from_dvl.translation();
-    // Velocity of the DVL point in the vehicle frame, then in the DVL frame.
-    let v_dvl_vehicle = path.body_velocity_mps() + w * Vector2::new(-lever.y, lever.x);
-    let v_dvl = vehicle_from_dvl.rotation_matrix().transpose() * v_dvl_vehicle;
-    let dvl = samples(config.dvl_period_s)
-        .map(|t| {
-            let dropped = config.dvl_dropouts_s.iter().any(|&(a, b)| t >= a && t < b);
-            let noisy = Vector3::new(
-                v_dvl.x + dvl_noise.sample(&mut rng),
-                v_dvl.y + dvl_noise.sample(&mut rng),
-                0.0,
-            );
-            DvlVelocity {
-                stamp_s: config.start_s + t,
-                velocity_mps: if dropped {
-                    Vector3::repeat(f64::NAN)
-                } else {
-                    noisy
-                },
-                valid: !dropped,
-                covariance: None,
-            }
-        })
-        .collect();
-    // The wander starts from its stationary distribution and is exact at
-    // the sample period: b' = a·b + √(σ²(1 − a²))·n, a = e^{−Δt/τ}.
-    let sigma_b = config.heading_wander_sigma_rad;
-    let decay = (-config.attitude_period_s / config.heading_wander_time_constant_s).exp();
-    let mut wander = sigma_b * normal(1.0).sample(&mut rng);
-    let wander_step = normal(sigma_b * (1.0 - decay * decay).sqrt());
-    let attitude = samples(config.attitude_period_s)
-        .map(|t| {
-            let yaw = wrap_angle(
-                path.world_from_vehicle(t).theta()
-                    + config.heading_bias_rad
-                    + wander
-                    + heading_noise.sample(&mut rng),
-            );
-            wander = decay * wander + wander_step.sample(&mut rng);
-            Attitude {
-                stamp_s: config.start_s + t,
-                roll_rad: 0.0,
-                pitch_rad: 0.0,
-                yaw_rad: yaw,
-                yaw_rate_radps: config
-                    .with_yaw_rate
-                    .then(|| w + config.yaw_rate_bias_radps + rate_noise.sample(&mut rng)),
-            }
-        })
-        .collect();
-    let ground_truth = samples(config.attitude_period_s)
+    // The DVL's draws come first, then the attitude's.
+    let dvl = synthetic_dvl(path, config, &mut rng);
+    let attitude = synthetic_attitude(path, config, &mut rng);
+    let ground_truth = sample_times(config, config.attitude_period_s)
         .map(|t| GroundTruthPose {
             stamp_s: config.start_s + t,
             world_from_vehicle: path.world_from_vehicle(t),
@@ -205,4 +146,91 @@ pub fn synthetic_mission(path: &SyntheticPath, config: &SyntheticNavConfig, seed
         ground_truth,
         warnings: Default::default(),
     }
+}
+
+/// A zero-mean normal distribution; panics (a test fixture) when `sigma`
+/// is negative or not finite.
+fn normal(sigma: f64) -> Normal<f64> {
+    Normal::new(0.0, sigma).expect("finite non-negative sigma")
+}
+
+/// Times from 0 to `duration_s` every `period_s`, s after `start_s`.
+fn sample_times(config: &SyntheticNavConfig, period_s: f64) -> impl Iterator<Item = f64> {
+    (0..=(config.duration_s / period_s).floor() as usize).map(move |i| i as f64 * period_s)
+}
+
+/// The DVL samples: the velocity of the DVL point (lever arm included) in
+/// the DVL frame, with noise; NaN and invalid within the dropouts.
+fn synthetic_dvl(
+    path: &SyntheticPath,
+    config: &SyntheticNavConfig,
+    rng: &mut ChaCha8Rng,
+) -> Vec<DvlVelocity> {
+    let dvl_noise = normal(config.dvl_noise_mps);
+    let w = path.yaw_rate_radps();
+    let vehicle_from_dvl = &config.mounting.vehicle_from_dvl;
+    let lever = vehicle_from_dvl.translation();
+    // Velocity of the DVL point in the vehicle frame, then in the DVL frame.
+    let v_dvl_vehicle = path.body_velocity_mps() + w * Vector2::new(-lever.y, lever.x);
+    let v_dvl = vehicle_from_dvl.rotation_matrix().transpose() * v_dvl_vehicle;
+    sample_times(config, config.dvl_period_s)
+        .map(|t| {
+            let dropped = config.dvl_dropouts_s.iter().any(|&(a, b)| t >= a && t < b);
+            let noisy = Vector3::new(
+                v_dvl.x + dvl_noise.sample(rng),
+                v_dvl.y + dvl_noise.sample(rng),
+                0.0,
+            );
+            DvlVelocity {
+                stamp_s: config.start_s + t,
+                velocity_mps: if dropped {
+                    Vector3::repeat(f64::NAN)
+                } else {
+                    noisy
+                },
+                valid: !dropped,
+                covariance: None,
+            }
+        })
+        .collect()
+}
+
+/// The attitude samples: the true heading plus bias, wander and noise;
+/// the yaw rate (when configured) plus bias and noise.
+fn synthetic_attitude(
+    path: &SyntheticPath,
+    config: &SyntheticNavConfig,
+    rng: &mut ChaCha8Rng,
+) -> Vec<Attitude> {
+    let (heading_noise, rate_noise) = (
+        normal(config.heading_noise_rad),
+        normal(config.yaw_rate_noise_radps),
+    );
+    let w = path.yaw_rate_radps();
+    // The wander starts from its stationary distribution and is exact at
+    // the sample period: b' = a·b + √(σ²(1 − a²))·n, a = e^{−Δt/τ}.
+    let sigma_b = config.heading_wander_sigma_rad;
+    let decay = (-config.attitude_period_s / config.heading_wander_time_constant_s).exp();
+    let mut wander = sigma_b * normal(1.0).sample(rng);
+    let wander_step = normal(sigma_b * (1.0 - decay * decay).sqrt());
+    sample_times(config, config.attitude_period_s)
+        .map(|t| {
+            let yaw = wrap_angle(
+                path.world_from_vehicle(t).theta()
+                    + config.heading_bias_rad
+                    + wander
+                    + heading_noise.sample(rng),
+            );
+            wander = decay * wander + wander_step.sample(rng);
+            Attitude {
+                stamp_s: config.start_s + t,
+                roll_rad: 0.0,
+                pitch_rad: 0.0,
+                yaw_rad: yaw,
+                yaw_rate_radps: config
+                    .with_yaw_rate
+                    .then(|| w + config.yaw_rate_bias_radps + rate_noise.sample(rng)),
+            }
+        })
+        .collect()
 }

@@ -133,12 +133,8 @@ pub fn examine(
 ) -> Result<LoopRecord, StageError> {
     let mut record = candidate.record(examined_at, config);
     let (old, new) = (&nodes[candidate.from], &nodes[candidate.to]);
-    if !new.has_scan() || !old.has_scan() || old.image.is_empty() || new.image.is_empty() {
-        record.rejected_by = Some(RejectReason::NoData);
-        return Ok(record);
-    }
-    if new.in_dvl_gap || old.in_dvl_gap {
-        record.rejected_by = Some(RejectReason::DvlGap);
+    if let Some(reason) = unmatchable(old, new) {
+        record.rejected_by = Some(reason);
         return Ok(record);
     }
     let stage = || format!("loop match {} -> {}", candidate.from, candidate.to);
@@ -176,13 +172,58 @@ pub fn examine(
     if record.rejected_by.is_some() {
         return Ok(record);
     }
-    // The symmetric check: S_j on I_k, climbing from the inverse of the
-    // result (see `symmetric` for why a climb and not a search).
+    let pair = Pair {
+        candidate,
+        old,
+        new,
+    };
+    confirm(&mut record, &m, &pair, matcher, config)?;
+    Ok(record)
+}
+
+/// Why the pair of `old` and `new` cannot be matched at all, if it cannot:
+/// a node without a scan or an image, or in a DVL gap.
+fn unmatchable(old: &NodeData, new: &NodeData) -> Option<RejectReason> {
+    if !new.has_scan() || !old.has_scan() || old.image.is_empty() || new.image.is_empty() {
+        return Some(RejectReason::NoData);
+    }
+    if new.in_dvl_gap || old.in_dvl_gap {
+        return Some(RejectReason::DvlGap);
+    }
+    None
+}
+
+/// A candidate with its two nodes (`old` = `from`, `new` = `to`).
+struct Pair<'a> {
+    candidate: &'a Candidate,
+    old: &'a NodeData,
+    new: &'a NodeData,
+}
+
+/// The checks after the individual ones, on a match `m` that passed them:
+/// the symmetric check (S_j on I_k, climbing from the inverse of the
+/// result; see `symmetric` for why a climb and not a search), whose fused
+/// result becomes the measurement, then, when the match leaves a direction
+/// unconstrained, the partial measurement along it. Errors: an image that
+/// cannot be rebuilt, a reverse match that fails.
+fn confirm(
+    record: &mut LoopRecord,
+    m: &MatchResult,
+    pair: &Pair,
+    matcher: &MatcherConfig,
+    config: &LoopConfig,
+) -> Result<(), StageError> {
+    let candidate = pair.candidate;
+    let stage = || format!("loop match {} -> {}", candidate.from, candidate.to);
     let tolerance = config.gate.reverse_tolerance();
-    let new_image = new.image.image().map_err(|e| StageError::new(stage(), e))?;
+    let new_image = pair
+        .new
+        .image
+        .image()
+        .map_err(|e| StageError::new(stage(), e))?;
     let (reverse, measurement) = reverse_match(
-        &m,
-        &old.scan.points,
+        m,
+        &pair.old.scan.points,
         &new_image,
         &tolerance,
         matcher,
@@ -204,7 +245,7 @@ pub fn examine(
         record.covariance = Some(covariance);
         record.unconstrained_direction = Some([u.x, u.y]);
     }
-    Ok(record)
+    Ok(())
 }
 
 /// The match of `candidate` by `search` over `window`, searched again

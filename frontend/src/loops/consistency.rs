@@ -330,38 +330,7 @@ impl MinCover<'_> {
             return;
         }
         let words = alive.0.len();
-        // Reductions: a vertex without alive neighbours stays out; the
-        // neighbour of a degree-one vertex goes in (some minimum cover
-        // takes it).
-        loop {
-            let mut changed = false;
-            for v in alive.clone().iter() {
-                if !alive.contains(v) {
-                    continue;
-                }
-                self.work += words;
-                match alive.intersection_count(&self.adjacency[v]) {
-                    0 => {
-                        alive.remove(v);
-                        changed = true;
-                    }
-                    1 => {
-                        let u = alive
-                            .first_common(&self.adjacency[v])
-                            .expect("one neighbour");
-                        alive.remove(u);
-                        alive.remove(v);
-                        cover.insert(u);
-                        size += 1;
-                        changed = true;
-                    }
-                    _ => {}
-                }
-            }
-            if !changed {
-                break;
-            }
-        }
+        size += self.reduce(&mut alive, &mut cover);
         if size >= self.best_size {
             return;
         }
@@ -370,19 +339,7 @@ impl MinCover<'_> {
             self.best_size = size;
             return;
         }
-        // Bound: the edges of a greedy matching need a cover vertex each.
-        let mut unmatched = alive.clone();
-        let mut matching = 0;
-        for v in alive.iter() {
-            if unmatched.contains(v)
-                && let Some(u) = unmatched.first_common(&self.adjacency[v])
-            {
-                unmatched.remove(u);
-                unmatched.remove(v);
-                matching += 1;
-            }
-        }
-        if size + matching >= self.best_size {
+        if size + self.matching_bound(&alive) >= self.best_size {
             return;
         }
         // Branch on the vertex of most conflicts (ties: the lowest): it is
@@ -406,6 +363,63 @@ impl MinCover<'_> {
             }
             self.branch(rest.difference(&neighbours), cover, size + k);
         }
+    }
+}
+
+impl MinCover<'_> {
+    /// Reductions, repeated until none applies: a vertex without alive
+    /// neighbours stays out; the neighbour of a degree-one vertex goes in
+    /// (some minimum cover takes it). Decided vertices leave `alive`;
+    /// returns how many went into `cover`.
+    fn reduce(&mut self, alive: &mut BitSet, cover: &mut BitSet) -> usize {
+        let words = alive.0.len();
+        let mut added = 0;
+        loop {
+            let mut changed = false;
+            for v in alive.clone().iter() {
+                if !alive.contains(v) {
+                    continue;
+                }
+                self.work += words;
+                match alive.intersection_count(&self.adjacency[v]) {
+                    0 => {
+                        alive.remove(v);
+                        changed = true;
+                    }
+                    1 => {
+                        let u = alive
+                            .first_common(&self.adjacency[v])
+                            .expect("one neighbour");
+                        alive.remove(u);
+                        alive.remove(v);
+                        cover.insert(u);
+                        added += 1;
+                        changed = true;
+                    }
+                    _ => {}
+                }
+            }
+            if !changed {
+                return added;
+            }
+        }
+    }
+
+    /// A lower bound on the cover of the edges among `alive`: the edges of
+    /// a greedy matching need a cover vertex each.
+    fn matching_bound(&self, alive: &BitSet) -> usize {
+        let mut unmatched = alive.clone();
+        let mut matching = 0;
+        for v in alive.iter() {
+            if unmatched.contains(v)
+                && let Some(u) = unmatched.first_common(&self.adjacency[v])
+            {
+                unmatched.remove(u);
+                unmatched.remove(v);
+                matching += 1;
+            }
+        }
+        matching
     }
 }
 

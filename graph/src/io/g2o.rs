@@ -47,51 +47,10 @@ pub fn parse_g2o(text: &str, path: &Path) -> Result<PoseGraph, IoError> {
     let mut raw = RawGraph::default();
     for record in records(text) {
         match record.tag() {
-            "VERTEX_SE2" => {
-                record.expect_fields(path, &VERTEX_FIELDS)?;
-                let id = record.id(path, 1, "id")?;
-                raw.vertices.push((
-                    record.line,
-                    id,
-                    pose_fields(&record, path, 2, &VERTEX_FIELDS)?,
-                ));
-            }
-            "EDGE_SE2" => {
-                record.expect_fields(path, &EDGE_FIELDS)?;
-                let from = record.id(path, 1, "from")?;
-                let to = record.id(path, 2, "to")?;
-                let measurement = pose_fields(&record, path, 3, &EDGE_FIELDS)?;
-                let information = upper_triangle(&record, path, 6, &EDGE_FIELDS[5..])?;
-                let kind = relative_kind(from, to);
-                raw.edges.push((
-                    record.line,
-                    Edge::new(kind, from, to, measurement, information),
-                ));
-            }
-            "EDGE_PRIOR_SE2" | "EDGE_SE2_PRIOR" => {
-                record.expect_fields(path, &PRIOR_FIELDS)?;
-                let id = record.id(path, 1, "id")?;
-                let measurement = pose_fields(&record, path, 2, &PRIOR_FIELDS)?;
-                let information = upper_triangle(&record, path, 5, &PRIOR_FIELDS[4..])?;
-                raw.edges.push((
-                    record.line,
-                    Edge::new(EdgeKind::Prior, id, id, measurement, information),
-                ));
-            }
-            "FIX" => {
-                if record.tokens.len() < 2 {
-                    return Err(IoError::parse(
-                        path,
-                        record.line,
-                        "id",
-                        "FIX needs at least one vertex id",
-                    ));
-                }
-                for index in 1..record.tokens.len() {
-                    raw.fixed.push((record.line, record.id(path, index, "id")?));
-                }
-                record.expect_terminated(path, "id")?;
-            }
+            "VERTEX_SE2" => read_vertex(&record, path, &mut raw)?,
+            "EDGE_SE2" => read_edge(&record, path, &mut raw)?,
+            "EDGE_PRIOR_SE2" | "EDGE_SE2_PRIOR" => read_prior(&record, path, &mut raw)?,
+            "FIX" => read_fix(&record, path, &mut raw)?,
             other => {
                 return Err(IoError::parse(
                     path,
@@ -105,6 +64,63 @@ pub fn parse_g2o(text: &str, path: &Path) -> Result<PoseGraph, IoError> {
         }
     }
     raw.into_graph(path)
+}
+
+/// `VERTEX_SE2 id x y theta`.
+fn read_vertex(record: &Record, path: &Path, raw: &mut RawGraph) -> Result<(), IoError> {
+    record.expect_fields(path, &VERTEX_FIELDS)?;
+    let id = record.id(path, 1, "id")?;
+    raw.vertices.push((
+        record.line,
+        id,
+        pose_fields(record, path, 2, &VERTEX_FIELDS)?,
+    ));
+    Ok(())
+}
+
+/// `EDGE_SE2 from to dx dy dtheta I11 I12 I13 I22 I23 I33`; odometry when
+/// `to = from + 1`, else a loop.
+fn read_edge(record: &Record, path: &Path, raw: &mut RawGraph) -> Result<(), IoError> {
+    record.expect_fields(path, &EDGE_FIELDS)?;
+    let from = record.id(path, 1, "from")?;
+    let to = record.id(path, 2, "to")?;
+    let measurement = pose_fields(record, path, 3, &EDGE_FIELDS)?;
+    let information = upper_triangle(record, path, 6, &EDGE_FIELDS[5..])?;
+    let kind = relative_kind(from, to);
+    raw.edges.push((
+        record.line,
+        Edge::new(kind, from, to, measurement, information),
+    ));
+    Ok(())
+}
+
+/// `EDGE_PRIOR_SE2 id x y theta I11 ... I33` (or `EDGE_SE2_PRIOR`).
+fn read_prior(record: &Record, path: &Path, raw: &mut RawGraph) -> Result<(), IoError> {
+    record.expect_fields(path, &PRIOR_FIELDS)?;
+    let id = record.id(path, 1, "id")?;
+    let measurement = pose_fields(record, path, 2, &PRIOR_FIELDS)?;
+    let information = upper_triangle(record, path, 5, &PRIOR_FIELDS[4..])?;
+    raw.edges.push((
+        record.line,
+        Edge::new(EdgeKind::Prior, id, id, measurement, information),
+    ));
+    Ok(())
+}
+
+/// `FIX id...`: at least one vertex id.
+fn read_fix(record: &Record, path: &Path, raw: &mut RawGraph) -> Result<(), IoError> {
+    if record.tokens.len() < 2 {
+        return Err(IoError::parse(
+            path,
+            record.line,
+            "id",
+            "FIX needs at least one vertex id",
+        ));
+    }
+    for index in 1..record.tokens.len() {
+        raw.fixed.push((record.line, record.id(path, index, "id")?));
+    }
+    record.expect_terminated(path, "id")
 }
 
 /// Writes the graph as g2o, in the order peers' readers need: every node

@@ -8,7 +8,7 @@
 //!   numbers per row, no stamp (the KITTI odometry ground-truth layout).
 
 use super::IoError;
-use super::lines::{MAX_ABS_POSITION_M, records};
+use super::lines::{MAX_ABS_POSITION_M, Record, records};
 use crate::{PoseGraph, Se2, wrap_angle};
 use std::io::Write;
 use std::path::Path;
@@ -103,59 +103,23 @@ pub fn read_tum(path: &Path) -> Result<Vec<TrajectoryPose>, IoError> {
 
 /// Parses TUM text; `path` only names the source in errors.
 pub fn parse_tum(text: &str, path: &Path) -> Result<Vec<TrajectoryPose>, IoError> {
-    const FIELDS: [&str; 8] = ["stamp", "x", "y", "z", "qx", "qy", "qz", "qw"];
     let mut poses: Vec<TrajectoryPose> = Vec::new();
     for record in records(text) {
-        // TUM rows have no tag: the first token is the stamp, so the field
-        // list starts at token 0.
-        if record.tokens.len() != FIELDS.len() {
-            let field = FIELDS
-                .get(record.tokens.len())
-                .copied()
-                .unwrap_or("end of line");
-            return Err(IoError::parse(
-                path,
-                record.line,
-                field,
-                format!(
-                    "a TUM row has 8 values (stamp x y z qx qy qz qw), found {}",
-                    record.tokens.len()
-                ),
-            ));
-        }
-        let mut v = [0.0; 8];
-        for (k, value) in v.iter_mut().enumerate() {
-            let (limit, what) = match k {
-                0 => (MAX_ABS_STAMP_S, "a time stamp in seconds"),
-                1..=3 => (MAX_ABS_POSITION_M, "a position in metres"),
-                _ => (MAX_ABS_QUATERNION, "a quaternion component"),
-            };
-            *value = record.bounded(path, k, FIELDS[k], limit, what)?;
-        }
-        record.expect_terminated(path, "qw")?;
-        let [stamp_s, x, y, _z, qx, qy, qz, qw] = v;
-        let norm = (qx * qx + qy * qy + qz * qz + qw * qw).sqrt();
-        if norm < 1e-9 {
-            return Err(IoError::parse(path, record.line, "qw", "zero quaternion"));
-        }
+        let pose = tum_row(&record, path)?;
         if let Some(last) = poses.last()
-            && stamp_s <= last.stamp_s
+            && pose.stamp_s <= last.stamp_s
         {
             return Err(IoError::parse(
                 path,
                 record.line,
                 "stamp",
                 format!(
-                    "stamp {stamp_s} is not after the previous one ({})",
-                    last.stamp_s
+                    "stamp {} is not after the previous one ({})",
+                    pose.stamp_s, last.stamp_s
                 ),
             ));
         }
-        let yaw = (2.0 * (qw * qz + qx * qy)).atan2(1.0 - 2.0 * (qy * qy + qz * qz));
-        poses.push(TrajectoryPose {
-            stamp_s,
-            pose: Se2::new(x, y, wrap_angle(yaw)),
-        });
+        poses.push(pose);
     }
     if poses.is_empty() {
         return Err(IoError::Empty {
@@ -163,6 +127,51 @@ pub fn parse_tum(text: &str, path: &Path) -> Result<Vec<TrajectoryPose>, IoError
         });
     }
     Ok(poses)
+}
+
+/// The fields of a TUM row, in order.
+const TUM_FIELDS: [&str; 8] = ["stamp", "x", "y", "z", "qx", "qy", "qz", "qw"];
+
+/// One TUM row `stamp x y z qx qy qz qw` (bounded values, a non-zero
+/// quaternion) as a planar pose: the rotation reduced to its yaw.
+fn tum_row(record: &Record, path: &Path) -> Result<TrajectoryPose, IoError> {
+    // TUM rows have no tag: the first token is the stamp, so the field
+    // list starts at token 0.
+    if record.tokens.len() != TUM_FIELDS.len() {
+        let field = TUM_FIELDS
+            .get(record.tokens.len())
+            .copied()
+            .unwrap_or("end of line");
+        return Err(IoError::parse(
+            path,
+            record.line,
+            field,
+            format!(
+                "a TUM row has 8 values (stamp x y z qx qy qz qw), found {}",
+                record.tokens.len()
+            ),
+        ));
+    }
+    let mut v = [0.0; 8];
+    for (k, value) in v.iter_mut().enumerate() {
+        let (limit, what) = match k {
+            0 => (MAX_ABS_STAMP_S, "a time stamp in seconds"),
+            1..=3 => (MAX_ABS_POSITION_M, "a position in metres"),
+            _ => (MAX_ABS_QUATERNION, "a quaternion component"),
+        };
+        *value = record.bounded(path, k, TUM_FIELDS[k], limit, what)?;
+    }
+    record.expect_terminated(path, "qw")?;
+    let [stamp_s, x, y, _z, qx, qy, qz, qw] = v;
+    let norm = (qx * qx + qy * qy + qz * qz + qw * qw).sqrt();
+    if norm < 1e-9 {
+        return Err(IoError::parse(path, record.line, "qw", "zero quaternion"));
+    }
+    let yaw = (2.0 * (qw * qz + qx * qy)).atan2(1.0 - 2.0 * (qy * qy + qz * qz));
+    Ok(TrajectoryPose {
+        stamp_s,
+        pose: Se2::new(x, y, wrap_angle(yaw)),
+    })
 }
 
 #[cfg(test)]

@@ -158,6 +158,54 @@ pub fn optimize(
     threads: usize,
     output: Option<PathBuf>,
 ) -> PyResult<OptimizeResult> {
+    let config = solver_config(solver, robust, init, max_iterations, threads)?;
+    let start = start_graph(py, graph, poses, edges, &fixed)?;
+    let with_kernel = robust != "none";
+    let (solved, summary) = py
+        .detach(|| -> anyhow::Result<(PoseGraph, RobustSolveSummary)> {
+            let mut solved = start.clone();
+            let summary = optimize_robust(&mut solved, &config, &OutlierConfig::default())?;
+            if let Some(path) = &output {
+                write_atomic(path, |w| Ok(write_g2o(&solved, w)?))?;
+            }
+            Ok((solved, summary))
+        })
+        .map_err(crate::to_py_err)?;
+    let least_squares = &summary.least_squares;
+    let summary_value = summary_json(&summary, with_kernel)?;
+    let termination = serde_json::to_value(least_squares.termination)
+        .ok()
+        .and_then(|v| v.as_str().map(str::to_string))
+        .unwrap_or_else(|| format!("{:?}", least_squares.termination));
+    let ids: Vec<u64> = solved.nodes().map(|n| n.id).collect();
+    Ok(OptimizeResult {
+        ids: PyArray1::from_vec(py, ids).into_any().unbind(),
+        poses: poses_array(py, solved.poses())?.into_any().unbind(),
+        initial_chi2: graph_chi2(&start),
+        final_chi2: least_squares.final_chi2,
+        iterations: least_squares.iterations
+            + if with_kernel {
+                summary.robust.iterations
+            } else {
+                0
+            },
+        termination,
+        converged: least_squares.termination.is_converged(),
+        time_s: summary.time_s,
+        switched_off: summary.switched_off.iter().map(|s| s.edge).collect(),
+        summary: to_python(py, &summary_value)?.unbind(),
+    })
+}
+
+/// The solver options of [`optimize`]; `ValueError` for an unknown
+/// solver, init or kernel name, `echofield.Error` for values out of range.
+fn solver_config(
+    solver: &str,
+    robust: &str,
+    init: &str,
+    max_iterations: Option<usize>,
+    threads: usize,
+) -> PyResult<SolverConfig> {
     let defaults = SolverConfig::default();
     let config = SolverConfig {
         algorithm: match solver {
@@ -186,65 +234,43 @@ pub fn optimize(
     config
         .validate()
         .map_err(|e| crate::to_py_err(anyhow::Error::new(e).context("invalid solver options")))?;
-    let start = match (graph, poses, edges) {
+    Ok(config)
+}
+
+/// The graph to optimise: read from `graph` (a g2o or TORO path), or
+/// built from the `poses` and `edges` arrays; exactly one of the two must
+/// be given.
+fn start_graph(
+    py: Python<'_>,
+    graph: Option<PathBuf>,
+    poses: Option<&Bound<'_, PyAny>>,
+    edges: Option<&Bound<'_, PyAny>>,
+    fixed: &[u64],
+) -> PyResult<PoseGraph> {
+    match (graph, poses, edges) {
         (Some(path), None, None) => py.detach(|| read_pose_graph(&path)).map_err(|e| {
             crate::to_py_err(
                 anyhow::Error::new(e).context(format!("cannot read pose graph {}", path.display())),
             )
-        })?,
-        (None, Some(poses), Some(edges)) => graph_from_arrays(poses, edges, &fixed)?,
-        _ => {
-            return Err(PyValueError::new_err(
-                "give either graph (a g2o or TORO path) or both poses and edges",
-            ));
-        }
-    };
-    let with_kernel = robust != "none";
-    let (solved, summary) = py
-        .detach(|| -> anyhow::Result<(PoseGraph, RobustSolveSummary)> {
-            let mut solved = start.clone();
-            let summary = optimize_robust(&mut solved, &config, &OutlierConfig::default())?;
-            if let Some(path) = &output {
-                write_atomic(path, |w| Ok(write_g2o(&solved, w)?))?;
-            }
-            Ok((solved, summary))
-        })
-        .map_err(crate::to_py_err)?;
-    let least_squares = &summary.least_squares;
-    let summary_value = if with_kernel {
-        let mut value = serde_json::to_value(least_squares).map_err(crate::py_err)?;
-        if let Some(map) = value.as_object_mut() {
-            map.insert(
-                "robust".into(),
-                serde_json::to_value(&summary).map_err(crate::py_err)?,
-            );
-        }
-        value
-    } else {
-        serde_json::to_value(least_squares).map_err(crate::py_err)?
-    };
-    let termination = serde_json::to_value(least_squares.termination)
-        .ok()
-        .and_then(|v| v.as_str().map(str::to_string))
-        .unwrap_or_else(|| format!("{:?}", least_squares.termination));
-    let ids: Vec<u64> = solved.nodes().map(|n| n.id).collect();
-    Ok(OptimizeResult {
-        ids: PyArray1::from_vec(py, ids).into_any().unbind(),
-        poses: poses_array(py, solved.poses())?.into_any().unbind(),
-        initial_chi2: graph_chi2(&start),
-        final_chi2: least_squares.final_chi2,
-        iterations: least_squares.iterations
-            + if with_kernel {
-                summary.robust.iterations
-            } else {
-                0
-            },
-        termination,
-        converged: least_squares.termination.is_converged(),
-        time_s: summary.time_s,
-        switched_off: summary.switched_off.iter().map(|s| s.edge).collect(),
-        summary: to_python(py, &summary_value)?.unbind(),
-    })
+        }),
+        (None, Some(poses), Some(edges)) => graph_from_arrays(poses, edges, fixed),
+        _ => Err(PyValueError::new_err(
+            "give either graph (a g2o or TORO path) or both poses and edges",
+        )),
+    }
+}
+
+/// The least-squares solve's summary as JSON, with the whole robust
+/// summary under `robust` when a kernel was used.
+fn summary_json(summary: &RobustSolveSummary, with_kernel: bool) -> PyResult<serde_json::Value> {
+    let mut value = serde_json::to_value(&summary.least_squares).map_err(crate::py_err)?;
+    if with_kernel && let Some(map) = value.as_object_mut() {
+        map.insert(
+            "robust".into(),
+            serde_json::to_value(summary).map_err(crate::py_err)?,
+        );
+    }
+    Ok(value)
 }
 
 #[pymethods]

@@ -8,7 +8,8 @@
 //! Exit status 0 when no input panicked or hung, 1 otherwise.
 
 use clap::Parser;
-use echofield::fuzz::{FuzzOptions, fuzz_target, targets::TARGET_NAMES};
+use echofield::fuzz::targets::{TARGET_NAMES, Target};
+use echofield::fuzz::{FuzzOptions, FuzzReport, fuzz_target};
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
@@ -71,21 +72,10 @@ fn main() -> ExitCode {
     }
 }
 
+/// Runs the targets of `cli` (or replays one input); true when no target
+/// panicked, hung or found the input of an aborted earlier run.
 fn run(cli: &Cli) -> anyhow::Result<bool> {
-    let names: Vec<&str> = if cli.targets.iter().any(|t| t == "all") {
-        TARGET_NAMES.to_vec()
-    } else {
-        cli.targets.iter().map(String::as_str).collect()
-    };
-    let mut targets = Vec::new();
-    for name in &names {
-        targets.push(echofield::fuzz::target(name).ok_or_else(|| {
-            anyhow::anyhow!(
-                "unknown target `{name}` (known: {})",
-                TARGET_NAMES.join(", ")
-            )
-        })?);
-    }
+    let targets = chosen_targets(cli)?;
     if let Some(folder) = &cli.replay {
         anyhow::ensure!(targets.len() == 1, "--replay takes one target");
         let outcome = (targets[0].parse)(folder);
@@ -95,57 +85,12 @@ fn run(cli: &Cli) -> anyhow::Result<bool> {
         }
         return Ok(true);
     }
-    anyhow::ensure!(
-        cli.timeout.is_finite() && cli.timeout > 0.0,
-        "--timeout must be a positive number of seconds, got {}",
-        cli.timeout
-    );
-    let duration = match cli.seconds {
-        Some(s) if s.is_finite() && s > 0.0 => Some(Duration::from_secs_f64(s)),
-        Some(s) => anyhow::bail!("--seconds must be a positive number, got {s}"),
-        None => None,
-    };
-    let options = FuzzOptions {
-        seed: cli.seed,
-        max_inputs: cli
-            .inputs
-            .or(if duration.is_none() { Some(1000) } else { None }),
-        duration,
-        timeout: Duration::from_secs_f64(cli.timeout),
-        findings_dir: Some(cli.findings.clone()),
-        ..FuzzOptions::default()
-    };
+    let options = options(cli)?;
     let mut clean = true;
     let mut rows = Vec::new();
     for target in targets {
         let report = fuzz_target(target, &options)?;
-        if let Some(kept) = &report.aborted_previous_run {
-            println!(
-                "{}: the previous run died (abort) on the input now in {}",
-                report.target,
-                kept.display()
-            );
-            clean = false;
-        }
-        println!("{}", report.summary());
-        for finding in &report.findings {
-            println!(
-                "  {} on input {}: {} (saved to {})",
-                finding.kind,
-                finding.input_index,
-                finding.message,
-                finding
-                    .saved_to
-                    .as_ref()
-                    .map_or_else(|| "-".into(), |p| p.display().to_string())
-            );
-        }
-        if cli.verbose {
-            for e in &report.sample_errors {
-                println!("  error: {e}");
-            }
-        }
-        clean &= report.panics == 0 && report.hangs == 0;
+        clean &= print_report(&report, cli.verbose);
         rows.push(report);
     }
     println!("\n| target | seconds | inputs | accepted | errors | panics | hangs |");
@@ -157,4 +102,85 @@ fn run(cli: &Cli) -> anyhow::Result<bool> {
         );
     }
     Ok(clean)
+}
+
+/// The targets named on the command line (`all`: every one); errors on an
+/// unknown name.
+fn chosen_targets(cli: &Cli) -> anyhow::Result<Vec<Target>> {
+    let names: Vec<&str> = if cli.targets.iter().any(|t| t == "all") {
+        TARGET_NAMES.to_vec()
+    } else {
+        cli.targets.iter().map(String::as_str).collect()
+    };
+    names
+        .iter()
+        .map(|name| {
+            echofield::fuzz::target(name).ok_or_else(|| {
+                anyhow::anyhow!(
+                    "unknown target `{name}` (known: {})",
+                    TARGET_NAMES.join(", ")
+                )
+            })
+        })
+        .collect()
+}
+
+/// The fuzz options of the command line: 1000 inputs per target unless
+/// `--inputs` or `--seconds` says otherwise. Errors on a timeout or a
+/// duration that is not a positive number of seconds.
+fn options(cli: &Cli) -> anyhow::Result<FuzzOptions> {
+    anyhow::ensure!(
+        cli.timeout.is_finite() && cli.timeout > 0.0,
+        "--timeout must be a positive number of seconds, got {}",
+        cli.timeout
+    );
+    let duration = match cli.seconds {
+        Some(s) if s.is_finite() && s > 0.0 => Some(Duration::from_secs_f64(s)),
+        Some(s) => anyhow::bail!("--seconds must be a positive number, got {s}"),
+        None => None,
+    };
+    Ok(FuzzOptions {
+        seed: cli.seed,
+        max_inputs: cli
+            .inputs
+            .or(if duration.is_none() { Some(1000) } else { None }),
+        duration,
+        timeout: Duration::from_secs_f64(cli.timeout),
+        findings_dir: Some(cli.findings.clone()),
+        ..FuzzOptions::default()
+    })
+}
+
+/// Prints one target's summary and findings (and, `verbose`, its sample
+/// errors); false when the target panicked, hung or found the input of an
+/// aborted earlier run.
+fn print_report(report: &FuzzReport, verbose: bool) -> bool {
+    let mut clean = true;
+    if let Some(kept) = &report.aborted_previous_run {
+        println!(
+            "{}: the previous run died (abort) on the input now in {}",
+            report.target,
+            kept.display()
+        );
+        clean = false;
+    }
+    println!("{}", report.summary());
+    for finding in &report.findings {
+        println!(
+            "  {} on input {}: {} (saved to {})",
+            finding.kind,
+            finding.input_index,
+            finding.message,
+            finding
+                .saved_to
+                .as_ref()
+                .map_or_else(|| "-".into(), |p| p.display().to_string())
+        );
+    }
+    if verbose {
+        for e in &report.sample_errors {
+            println!("  error: {e}");
+        }
+    }
+    clean && report.panics == 0 && report.hangs == 0
 }

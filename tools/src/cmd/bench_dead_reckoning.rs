@@ -108,19 +108,7 @@ pub fn run(args: Args) -> Result<()> {
     print_distortion("", &distortion(mission, &rotations.rotations, nav, &truth)?);
     if let Some(scenario) = &scenario {
         for (label, navigation) in [("dead reckoning", nav), ("exact", &truth)] {
-            let w = wall_fractions(
-                mission,
-                &rotations.rotations,
-                navigation,
-                scenario.environment(),
-            )?;
-            println!(
-                "scan points near walls ({label}): {:.1}% within 0.1 m, {:.1}% within 0.3 m, {:.1}% within 1 m ({} points)",
-                100.0 * w.within_0_1_m,
-                100.0 * w.within_0_3_m,
-                100.0 * w.within_1_m,
-                w.points
-            );
+            print_wall_fractions(label, &rotations, navigation, scenario)?;
         }
     }
     if args.slam {
@@ -136,6 +124,30 @@ pub fn run(args: Args) -> Result<()> {
             .map_or(String::new(), |a| format!(", ATE {a:.3} m"));
         print_distortion(&format!(" along the SLAM trajectory{ate}"), &d);
     }
+    Ok(())
+}
+
+/// How close the scan points built with `navigation` lie to the
+/// scenario's walls (one line on stdout).
+fn print_wall_fractions(
+    label: &str,
+    rotations: &MissionRotations,
+    navigation: &Navigation,
+    scenario: &Scenario,
+) -> Result<()> {
+    let w = wall_fractions(
+        &rotations.mission,
+        &rotations.rotations,
+        navigation,
+        scenario.environment(),
+    )?;
+    println!(
+        "scan points near walls ({label}): {:.1}% within 0.1 m, {:.1}% within 0.3 m, {:.1}% within 1 m ({} points)",
+        100.0 * w.within_0_1_m,
+        100.0 * w.within_0_3_m,
+        100.0 * w.within_1_m,
+        w.points
+    );
     Ok(())
 }
 

@@ -3,7 +3,7 @@
 
 use anyhow::{Context, Result};
 use echofield::matching::MissionRotations;
-use echofield::matching::evaluation::{EvaluationConfig, evaluate};
+use echofield::matching::evaluation::{TrialConfig, evaluate};
 use echofield::output::write_bytes_atomic;
 use echofield::slam::SlamConfig;
 use echofield_datasets::sim::{Scenario, simulate_mission};
@@ -130,13 +130,13 @@ pub fn run(args: Args) -> Result<()> {
             }
         }
     }
-    let eval = EvaluationConfig {
+    let eval = TrialConfig {
         trials_per_pair: args.trials,
         max_pairs_per_kind: args.max_pairs,
         max_initial_error_m: args.max_error_m,
         max_initial_error_rad: args.max_error_deg.to_radians(),
         seed: args.seed,
-        ..EvaluationConfig::default()
+        ..TrialConfig::default()
     };
     let source = match &args.mission {
         Some(path) => path.display().to_string(),

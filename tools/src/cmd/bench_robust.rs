@@ -105,11 +105,7 @@ pub fn run(args: Args) -> Result<()> {
         "graph", "false", "seed", "kernel", "ATE (m)", "false off", "true off", "time (s)"
     );
     for path in &args.graphs {
-        let clean = read_pose_graph(path)
-            .with_context(|| format!("cannot read pose graph {}", path.display()))?;
-        let mut reference = clean.clone();
-        optimize(&mut reference, &SolverConfig::default())
-            .with_context(|| format!("cannot optimise the clean graph {}", path.display()))?;
+        let (clean, reference) = clean_and_reference(path)?;
         let name = path
             .file_stem()
             .map(|s| s.to_string_lossy().into_owned())
@@ -138,23 +134,7 @@ pub fn run(args: Args) -> Result<()> {
                     write_atomic(&out, |w| Ok(write_g2o(&graph, w)?))?;
                 }
                 let row = solve(&name, &graph, &reference, clean_edges, &args, &solver, seed)?;
-                println!(
-                    "{:<16} {:>6} {:>4} {:>8} {:>10.6} {:>12} {:>12} {:>8.2}{}",
-                    row.graph,
-                    row.false_loops,
-                    row.seed,
-                    row.kernel,
-                    row.ate_m,
-                    row.false_switched_off
-                        .map_or("-".into(), |n| format!("{n}/{count}")),
-                    row.true_switched_off.map_or("-".into(), |n| n.to_string()),
-                    row.time_s,
-                    if row.hit_iteration_cap {
-                        "  (iteration cap)"
-                    } else {
-                        ""
-                    }
-                );
+                print_row(&row, count);
                 rows.push(row);
             }
         }
@@ -163,6 +143,38 @@ pub fn run(args: Args) -> Result<()> {
         write_atomic(path, |w| Ok(serde_json::to_writer_pretty(&mut *w, &rows)?))?;
     }
     Ok(())
+}
+
+/// The graph of `path` and its least-squares optimum (the reference the
+/// corrupted graphs are measured against).
+fn clean_and_reference(path: &std::path::Path) -> Result<(PoseGraph, PoseGraph)> {
+    let clean = read_pose_graph(path)
+        .with_context(|| format!("cannot read pose graph {}", path.display()))?;
+    let mut reference = clean.clone();
+    optimize(&mut reference, &SolverConfig::default())
+        .with_context(|| format!("cannot optimise the clean graph {}", path.display()))?;
+    Ok((clean, reference))
+}
+
+/// One line of the table on stdout (`count` false loops were added).
+fn print_row(row: &Row, count: usize) {
+    println!(
+        "{:<16} {:>6} {:>4} {:>8} {:>10.6} {:>12} {:>12} {:>8.2}{}",
+        row.graph,
+        row.false_loops,
+        row.seed,
+        row.kernel,
+        row.ate_m,
+        row.false_switched_off
+            .map_or("-".into(), |n| format!("{n}/{count}")),
+        row.true_switched_off.map_or("-".into(), |n| n.to_string()),
+        row.time_s,
+        if row.hit_iteration_cap {
+            "  (iteration cap)"
+        } else {
+            ""
+        }
+    );
 }
 
 /// Solves one corrupted graph and measures it against `reference`.

@@ -5,8 +5,9 @@ use echofield_datasets::mcap::{TopicChoice, read_mission_with, write_mission};
 use echofield_datasets::miniking::read_miniking_bag;
 use echofield_datasets::ping360::read_ping360;
 use echofield_datasets::sonar_recording::SonarRecording;
+use echofield_datasets::stpere::keyframes::KeyframeBeams;
 use echofield_datasets::stpere::{
-    MARINA_YAW_OFFSET_RAD, read_stpere_dir, read_stpere_with_keyframes,
+    MARINA_YAW_OFFSET_RAD, StPereLogs, read_stpere_dir, read_stpere_with_keyframes,
 };
 use echofield_frontend::sensors::SweepTiming;
 use echofield_graph::wrap_angle;
@@ -175,25 +176,7 @@ fn stpere(args: &StPereArgs) -> Result<()> {
         args.yaw_offset_deg.is_finite(),
         "--yaw-offset-deg must be finite"
     );
-    let (mut logs, keyframes) = match &args.keyframes {
-        None => (
-            read_stpere_dir(&args.dir).with_context(|| {
-                format!("cannot read the St Pere logs in {}", args.dir.display())
-            })?,
-            None,
-        ),
-        Some(kf_dir) => {
-            let (logs, kf) = read_stpere_with_keyframes(&args.dir, kf_dir, args.sweep.into())
-                .with_context(|| {
-                    format!(
-                        "cannot read the St Pere logs in {} with the point sets in {}",
-                        args.dir.display(),
-                        kf_dir.display()
-                    )
-                })?;
-            (logs, Some(kf))
-        }
-    };
+    let (mut logs, keyframes) = read_stpere(args)?;
     // The reader puts the marina calibration into the mounting; the
     // option replaces it there (adding it to the attitude as well would
     // correct the heading twice).
@@ -222,17 +205,7 @@ fn stpere(args: &StPereArgs) -> Result<()> {
         MARINA_YAW_OFFSET_RAD.to_degrees()
     );
     if let Some(kf) = &keyframes {
-        let points: usize = kf.rotations.iter().map(|r| r.points).sum();
-        println!(
-            "  {} rotations ({}-{}) rebuilt from {points} points, stamps assigned with the angle {}",
-            kf.rotations.len(),
-            kf.rotations.first().map_or(0, |r| r.keyframe),
-            kf.rotations.last().map_or(0, |r| r.keyframe),
-            match kf.sweep {
-                SweepTiming::AngleDecreasing => "decreasing",
-                _ => "increasing",
-            }
-        );
+        print_keyframes(kf);
     }
     if m.beams.is_empty() {
         println!(
@@ -241,6 +214,40 @@ fn stpere(args: &StPereArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// The St Pere logs of `args.dir`, with the beams rebuilt from the point
+/// sets of `args.keyframes` when given (and those rotations).
+fn read_stpere(args: &StPereArgs) -> Result<(StPereLogs, Option<KeyframeBeams>)> {
+    let Some(kf_dir) = &args.keyframes else {
+        let logs = read_stpere_dir(&args.dir)
+            .with_context(|| format!("cannot read the St Pere logs in {}", args.dir.display()))?;
+        return Ok((logs, None));
+    };
+    let (logs, kf) = read_stpere_with_keyframes(&args.dir, kf_dir, args.sweep.into())
+        .with_context(|| {
+            format!(
+                "cannot read the St Pere logs in {} with the point sets in {}",
+                args.dir.display(),
+                kf_dir.display()
+            )
+        })?;
+    Ok((logs, Some(kf)))
+}
+
+/// One line on the rotations rebuilt from keyframe point sets.
+fn print_keyframes(kf: &KeyframeBeams) {
+    let points: usize = kf.rotations.iter().map(|r| r.points).sum();
+    println!(
+        "  {} rotations ({}-{}) rebuilt from {points} points, stamps assigned with the angle {}",
+        kf.rotations.len(),
+        kf.rotations.first().map_or(0, |r| r.keyframe),
+        kf.rotations.last().map_or(0, |r| r.keyframe),
+        match kf.sweep {
+            SweepTiming::AngleDecreasing => "decreasing",
+            _ => "increasing",
+        }
+    );
 }
 
 fn sonar(

@@ -6,6 +6,7 @@ use echofield::matching::MissionRotations;
 use echofield::matching::plots::{self, Marker};
 use echofield::output::write_bytes_atomic;
 use echofield::slam::SlamConfig;
+use echofield_frontend::image::AcousticImage;
 use echofield_frontend::matcher::{MatchOutcome, SearchWindow, match_scan};
 use echofield_graph::Se2;
 use nalgebra::Matrix3;
@@ -113,18 +114,7 @@ pub fn run(args: Args) -> Result<()> {
     let mission = MissionRotations::load(&args.mission, &config)?;
     let scan = mission.scan(args.scan, &config)?;
     let image = mission.image(args.image, &config)?;
-    let (prior, prior_covariance) = match args.prior {
-        Some([x, y, deg]) => (Se2::new(x, y, deg.to_radians()), None),
-        None => {
-            let (pose, cov) = mission.prior(args.scan, args.image)?;
-            (pose, Some(cov))
-        }
-    };
-    let window = match (args.window, prior_covariance) {
-        (Some([x, y, deg]), _) => SearchWindow::new(x, y, deg.to_radians()),
-        (None, Some(cov)) => config.loops.gate.window(&cov),
-        (None, None) => config.loops.gate.max_window,
-    };
+    let (prior, prior_covariance, window) = prior_and_window(&args, &mission, &config)?;
     let outcome =
         match_scan(&scan.points, &image, &prior, &window, &config.matcher).context("matching")?;
     let truth = mission.ground_truth(args.scan, args.image);
@@ -139,36 +129,9 @@ pub fn run(args: Args) -> Result<()> {
         "window": window,
         "ground_truth": truth.as_ref().map(pose_json),
     });
-    let estimate = match &outcome {
-        MatchOutcome::Match(m) => {
-            report["matched"] = json!(true);
-            report["pose"] = pose_json(&m.image_from_scan);
-            report["score"] = json!(m.score);
-            report["quality"] = serde_json::to_value(&m.quality)?;
-            report["covariance"] = matrix_json(&m.covariance);
-            report["searched_peak"] = pose_json(&m.searched_peak);
-            report["coarse_pose"] = pose_json(&m.coarse);
-            report["stats"] = serde_json::to_value(&m.stats)?;
-            if let Some(t) = &truth {
-                let e = t.between(&m.image_from_scan);
-                report["error"] = json!({
-                    "translation_m": e.translation().norm(),
-                    "rotation_rad": e.theta().abs(),
-                });
-            }
-            Some(m.image_from_scan)
-        }
-        MatchOutcome::NoMatch { reason } => {
-            eprintln!("no match: {reason}");
-            report["matched"] = json!(false);
-            report["reason"] = serde_json::to_value(reason)?;
-            report["reason_text"] = json!(reason.to_string());
-            None
-        }
-    };
+    let estimate = record_outcome(&mut report, &outcome, truth.as_ref())?;
     let text = serde_json::to_string_pretty(&report)? + "\n";
     write_bytes_atomic(&args.json, text.as_bytes())?;
-
     let mut markers = vec![Marker {
         pose: prior,
         colour: plots::PRIOR,
@@ -181,17 +144,107 @@ pub fn run(args: Args) -> Result<()> {
         pose,
         colour: plots::ESTIMATE,
     }));
+    let placed = Placed {
+        scan: &scan.points,
+        image: &image,
+        estimate,
+        window: &window,
+        markers: &markers,
+    };
+    write_pictures(&args, &placed)
+}
+
+/// The prior `image_from_scan`, its covariance (`None` when given by hand)
+/// and the search window: `--prior`/`--window` when given, else the
+/// dead-reckoning motion between the rotations and the loop gate's window
+/// for its covariance (its largest window without one).
+fn prior_and_window(
+    args: &Args,
+    mission: &MissionRotations,
+    config: &SlamConfig,
+) -> Result<(Se2, Option<Matrix3<f64>>, SearchWindow)> {
+    let (prior, prior_covariance) = match args.prior {
+        Some([x, y, deg]) => (Se2::new(x, y, deg.to_radians()), None),
+        None => {
+            let (pose, cov) = mission.prior(args.scan, args.image)?;
+            (pose, Some(cov))
+        }
+    };
+    let window = match (args.window, prior_covariance) {
+        (Some([x, y, deg]), _) => SearchWindow::new(x, y, deg.to_radians()),
+        (None, Some(cov)) => config.loops.gate.window(&cov),
+        (None, None) => config.loops.gate.max_window,
+    };
+    Ok((prior, prior_covariance, window))
+}
+
+/// Adds the match's fields (or the no-match reason, also printed to
+/// stderr) to `report`, with the error against `truth` when there is one;
+/// returns the estimate.
+fn record_outcome(
+    report: &mut serde_json::Value,
+    outcome: &MatchOutcome,
+    truth: Option<&Se2>,
+) -> Result<Option<Se2>> {
+    match outcome {
+        MatchOutcome::Match(m) => {
+            report["matched"] = json!(true);
+            report["pose"] = pose_json(&m.image_from_scan);
+            report["score"] = json!(m.score);
+            report["quality"] = serde_json::to_value(&m.quality)?;
+            report["covariance"] = matrix_json(&m.covariance);
+            report["searched_peak"] = pose_json(&m.searched_peak);
+            report["coarse_pose"] = pose_json(&m.coarse);
+            report["stats"] = serde_json::to_value(&m.stats)?;
+            if let Some(t) = truth {
+                let e = t.between(&m.image_from_scan);
+                report["error"] = json!({
+                    "translation_m": e.translation().norm(),
+                    "rotation_rad": e.theta().abs(),
+                });
+            }
+            Ok(Some(m.image_from_scan))
+        }
+        MatchOutcome::NoMatch { reason } => {
+            eprintln!("no match: {reason}");
+            report["matched"] = json!(false);
+            report["reason"] = serde_json::to_value(reason)?;
+            report["reason_text"] = json!(reason.to_string());
+            Ok(None)
+        }
+    }
+}
+
+/// What the pictures show: the scan (scan frame), the image, the estimate
+/// and the markers (image frame).
+struct Placed<'a> {
+    scan: &'a [nalgebra::Point2<f64>],
+    image: &'a AcousticImage,
+    estimate: Option<Se2>,
+    window: &'a SearchWindow,
+    markers: &'a [Marker],
+}
+
+/// Writes `--surface` (errors without a match: no estimate to centre it
+/// on) and `--overlay` when asked for.
+fn write_pictures(args: &Args, placed: &Placed) -> Result<()> {
     if let Some(path) = &args.surface {
-        let Some(centre) = estimate else {
+        let Some(centre) = placed.estimate else {
             bail!("no match, so no surface to draw at the estimate");
         };
-        let half_width_m = window.x_m.max(window.y_m).max(0.5);
-        let png =
-            plots::score_surface_png(&scan.points, &image, &centre, half_width_m, 200, &markers)?;
+        let half_width_m = placed.window.x_m.max(placed.window.y_m).max(0.5);
+        let png = plots::score_surface_png(
+            placed.scan,
+            placed.image,
+            &centre,
+            half_width_m,
+            200,
+            placed.markers,
+        )?;
         write_bytes_atomic(path, &png)?;
     }
     if let Some(path) = &args.overlay {
-        let png = plots::overlay_png(&image, &scan.points, &markers)?;
+        let png = plots::overlay_png(placed.image, placed.scan, placed.markers)?;
         write_bytes_atomic(path, &png)?;
     }
     Ok(())

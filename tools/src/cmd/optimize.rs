@@ -174,24 +174,7 @@ pub fn run(args: Args) -> Result<()> {
         };
         write_atomic(path, |w| Ok(serde_json::to_writer_pretty(&mut *w, &file)?))?;
     }
-    // With --robust the last solve starts from the robust stage's poses;
-    // the χ² that matters to a user is the file's.
-    println!(
-        "{}: chi2 {:.6} -> {:.6} in {} iterations ({}), {:.3} s",
-        args.input.display(),
-        graph_chi2(&start),
-        summary.final_chi2,
-        summary.iterations
-            + if with_kernel {
-                robust.robust.iterations
-            } else {
-                0
-            },
-        serde_json::to_value(summary.termination)?
-            .as_str()
-            .unwrap_or("?"),
-        robust.time_s
-    );
+    print_result(&args.input, graph_chi2(&start), &robust, with_kernel)?;
     if with_kernel {
         println!(
             "{} of {} loop closures switched off (they disagree with the rest of the graph; --summary lists them)",
@@ -205,6 +188,36 @@ pub fn run(args: Args) -> Result<()> {
             summary.termination
         );
     }
+    Ok(())
+}
+
+/// The result line: the χ² of the file's poses (`start_chi2`; with
+/// --robust the last solve starts from the robust stage's poses, but the
+/// χ² that matters to a user is the file's) and after the solve, the
+/// iterations of the solves that count, the termination and the time.
+fn print_result(
+    input: &std::path::Path,
+    start_chi2: f64,
+    robust: &RobustSolveSummary,
+    with_kernel: bool,
+) -> Result<()> {
+    let summary = &robust.least_squares;
+    println!(
+        "{}: chi2 {:.6} -> {:.6} in {} iterations ({}), {:.3} s",
+        input.display(),
+        start_chi2,
+        summary.final_chi2,
+        summary.iterations
+            + if with_kernel {
+                robust.robust.iterations
+            } else {
+                0
+            },
+        serde_json::to_value(summary.termination)?
+            .as_str()
+            .unwrap_or("?"),
+        robust.time_s
+    );
     Ok(())
 }
 

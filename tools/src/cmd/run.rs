@@ -8,11 +8,13 @@ use echofield::output::folder::OutputFolder;
 use echofield::output::write_atomic;
 use echofield::slam::online::run_online;
 use echofield::slam::outputs::{FOLDER_FILES, write_output_files};
+use echofield::slam::result::Report;
 use echofield::slam::{
     ProgressSink, RunInfo, SlamConfig, load_mission_choosing, load_mission_with_keyframes,
     run_mission,
 };
 use echofield_datasets::mcap::{ChannelUse, TopicChoice};
+use echofield_frontend::sensors::Mission;
 use echofield_graph::io::write_tum;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::io::IsTerminal;
@@ -166,21 +168,7 @@ pub fn run(args: Args) -> Result<()> {
     // Before any work: a folder that cannot be written fails now.
     let folder = OutputFolder::prepare(&args.output, FOLDER_FILES)?;
     let start = Instant::now();
-    let mission = if args.keyframes.is_some() {
-        load_mission_with_keyframes(
-            &args.mission,
-            args.keyframes.as_deref(),
-            config.mounting.sweep,
-        )?
-    } else {
-        let mut choice = TopicChoice::default();
-        for (role, topic) in &args.topics {
-            choice.topics[*role] = Some(topic.clone());
-        }
-        let (mission, channels) = load_mission_choosing(&args.mission, &choice)?;
-        print_channels(&channels);
-        mission
-    };
+    let mission = load(&args, &config)?;
     let reading_s = start.elapsed().as_secs_f64();
     let progress = BarProgress::new();
     let failed = || format!("SLAM on {} failed", args.mission.display());
@@ -206,14 +194,45 @@ pub fn run(args: Args) -> Result<()> {
         .and_then(|()| folder.commit())
         .with_context(|| format!("cannot write the outputs into {}", args.output.display()))?;
     let report = &output.report;
+    print_summary(report, start.elapsed().as_secs_f64(), &args.output);
+    // The remedy names the mission as it was read.
+    let mut mission = args.mission.display().to_string();
+    if let Some(keyframes) = &args.keyframes {
+        mission += &format!(" --keyframes {}", keyframes.display());
+    }
+    super::check_health(&report.health, &mission, args.allow_suspect)
+}
+
+/// The mission of `args`: with its keyframe folder when given, else with
+/// the `--topic` choices (printing what became of every channel).
+fn load(args: &Args, config: &SlamConfig) -> Result<Mission> {
+    if args.keyframes.is_some() {
+        return load_mission_with_keyframes(
+            &args.mission,
+            args.keyframes.as_deref(),
+            config.mounting.sweep,
+        );
+    }
+    let mut choice = TopicChoice::default();
+    for (role, topic) in &args.topics {
+        choice.topics[*role] = Some(topic.clone());
+    }
+    let (mission, channels) = load_mission_choosing(&args.mission, &choice)?;
+    print_channels(&channels);
+    Ok(mission)
+}
+
+/// The lines a run prints on stdout (counts, ATE when there is ground
+/// truth, online latencies, the loop summary) and its warnings as log
+/// lines; `elapsed_s` is the whole run's time.
+fn print_summary(report: &Report, elapsed_s: f64, output: &std::path::Path) {
     println!(
-        "{}: {} nodes, {} of {} loop candidates accepted, {:.2} s; outputs in {}",
+        "{}: {} nodes, {} of {} loop candidates accepted, {elapsed_s:.2} s; outputs in {}",
         report.mission,
         report.nodes,
         report.loops_accepted,
         report.loop_candidates,
-        start.elapsed().as_secs_f64(),
-        args.output.display()
+        output.display()
     );
     if let (Some(ate), Some(dr)) = (report.ate_rmse_m, report.ate_rmse_dead_reckoning_m) {
         println!("ATE RMSE {ate:.3} m (dead reckoning {dr:.3} m)");
@@ -236,12 +255,6 @@ pub fn run(args: Args) -> Result<()> {
     for warning in &report.warnings {
         tracing::warn!("{warning}");
     }
-    // The remedy names the mission as it was read.
-    let mut mission = args.mission.display().to_string();
-    if let Some(keyframes) = &args.keyframes {
-        mission += &format!(" --keyframes {}", keyframes.display());
-    }
-    super::check_health(&report.health, &mission, args.allow_suspect)
 }
 
 /// The progress of a run on stderr: one line `[stage/stages] name`, with a

@@ -122,29 +122,8 @@ pub fn pose_graph_text(rng: &mut ChaCha8Rng, toro: bool) -> Vec<u8> {
         } else {
             (id(rng, n, nasty), id(rng, n, nasty))
         };
-        let info = |rng: &mut ChaCha8Rng, diagonal: bool| {
-            if diagonal {
-                number(rng, 100.0, 99.0, nasty)
-            } else {
-                number(rng, 0.0, 1.0, nasty)
-            }
-        };
-        let _ = write!(
-            text,
-            "{edge} {from} {to} {} {} {}",
-            number(rng, 1.0, 1.0, nasty),
-            number(rng, 0.0, 1.0, nasty),
-            number(rng, 0.0, 3.2, nasty)
-        );
-        // g2o: I11 I12 I13 I22 I23 I33; TORO: xx xy yy tt xt yt.
-        let diagonal_slots: [bool; 6] = if toro {
-            [true, false, true, true, false, false]
-        } else {
-            [true, false, false, true, false, true]
-        };
-        for diagonal in diagonal_slots {
-            let _ = write!(text, " {}", info(rng, diagonal));
-        }
+        let _ = write!(text, "{edge} {from} {to}");
+        edge_values(rng, &mut text, toro, nasty);
         text.push('\n');
     }
     if !toro && rng.random_bool(0.3) {
@@ -165,6 +144,32 @@ pub fn pose_graph_text(rng: &mut ChaCha8Rng, toro: bool) -> Vec<u8> {
         text.pop();
     }
     text.into_bytes()
+}
+
+/// Appends the measurement `x y θ` and the six information values of an
+/// edge line (g2o: I11 I12 I13 I22 I23 I33; TORO: xx xy yy tt xt yt), each
+/// spoilt with probability `nasty`.
+fn edge_values(rng: &mut ChaCha8Rng, text: &mut String, toro: bool, nasty: f64) {
+    let _ = write!(
+        text,
+        " {} {} {}",
+        number(rng, 1.0, 1.0, nasty),
+        number(rng, 0.0, 1.0, nasty),
+        number(rng, 0.0, 3.2, nasty)
+    );
+    let diagonal_slots: [bool; 6] = if toro {
+        [true, false, true, true, false, false]
+    } else {
+        [true, false, false, true, false, true]
+    };
+    for diagonal in diagonal_slots {
+        let value = if diagonal {
+            number(rng, 100.0, 99.0, nasty)
+        } else {
+            number(rng, 0.0, 1.0, nasty)
+        };
+        let _ = write!(text, " {value}");
+    }
 }
 
 /// A random TUM trajectory: increasing stamps, unit quaternions about z.
@@ -280,59 +285,16 @@ fn bag_record(fields: &[(&str, Vec<u8>)], data: &[u8]) -> Vec<u8> {
 /// A ROS 1 bag (format 2.0) with one AcousticBeam connection and random
 /// beams, in one uncompressed chunk or as top-level records.
 pub fn miniking_bag(rng: &mut ChaCha8Rng) -> Vec<u8> {
-    use echofield_datasets::miniking::acoustic_beam::{
-        ACOUSTIC_BEAM_MD5, ACOUSTIC_BEAM_TYPE, AcousticBeam, encode_acoustic_beam,
-    };
     let conn: u32 = if rng.random_bool(0.95) {
         0
     } else {
         rng.random()
     };
-    let topic = "/miniking_node/sonar";
-    let mut connection_header = Vec::new();
-    for (name, value) in [
-        ("topic", topic),
-        ("type", ACOUSTIC_BEAM_TYPE),
-        ("md5sum", ACOUSTIC_BEAM_MD5),
-        ("message_definition", "# fuzz"),
-    ] {
-        let field = format!("{name}={value}");
-        connection_header.extend((field.len() as u32).to_le_bytes());
-        connection_header.extend(field.as_bytes());
-    }
-    let mut records = bag_record(
-        &[
-            ("op", vec![0x07]),
-            ("conn", 0u32.to_le_bytes().to_vec()),
-            ("topic", topic.as_bytes().to_vec()),
-        ],
-        &connection_header,
-    );
+    let mut records = miniking_connection_record();
     let mut stamp_s: f64 = rng.random_range(0.0..2e9);
     for _ in 0..rng.random_range(0..40) {
         stamp_s += rng.random_range(0.0..0.2);
-        let bins: usize = rng.random_range(0..300);
-        let beam = AcousticBeam {
-            seq: rng.random(),
-            stamp_s: if rng.random_bool(0.05) { 0.0 } else { stamp_s },
-            frame_id: "sonar".into(),
-            angle_deg: if rng.random_bool(0.05) {
-                f32::from_bits(rng.random())
-            } else {
-                rng.random_range(0.0..360.0)
-            },
-            range_max_m: if rng.random_bool(0.05) {
-                f32::from_bits(rng.random())
-            } else {
-                rng.random_range(0.1..100.0)
-            },
-            bins: if rng.random_bool(0.05) {
-                rng.random()
-            } else {
-                bins as i32
-            },
-            intensities: (0..bins).map(|_| rng.random()).collect(),
-        };
+        let beam = random_acoustic_beam(rng, stamp_s);
         let secs = stamp_s as u32;
         let nsecs = ((stamp_s - f64::from(secs)) * 1e9) as u32;
         let mut time = secs.to_le_bytes().to_vec();
@@ -343,7 +305,7 @@ pub fn miniking_bag(rng: &mut ChaCha8Rng) -> Vec<u8> {
                 ("conn", conn.to_le_bytes().to_vec()),
                 ("time", time),
             ],
-            &encode_acoustic_beam(&beam),
+            &echofield_datasets::miniking::acoustic_beam::encode_acoustic_beam(&beam),
         ));
     }
     let mut out = b"#ROSBAG V2.0\n".to_vec();
@@ -369,4 +331,61 @@ pub fn miniking_bag(rng: &mut ChaCha8Rng) -> Vec<u8> {
         out.extend(records);
     }
     out
+}
+
+/// The connection record (op 0x07, connection 0) of the MiniKing sonar
+/// topic with its AcousticBeam type.
+fn miniking_connection_record() -> Vec<u8> {
+    use echofield_datasets::miniking::acoustic_beam::{ACOUSTIC_BEAM_MD5, ACOUSTIC_BEAM_TYPE};
+    let topic = "/miniking_node/sonar";
+    let mut connection_header = Vec::new();
+    for (name, value) in [
+        ("topic", topic),
+        ("type", ACOUSTIC_BEAM_TYPE),
+        ("md5sum", ACOUSTIC_BEAM_MD5),
+        ("message_definition", "# fuzz"),
+    ] {
+        let field = format!("{name}={value}");
+        connection_header.extend((field.len() as u32).to_le_bytes());
+        connection_header.extend(field.as_bytes());
+    }
+    bag_record(
+        &[
+            ("op", vec![0x07]),
+            ("conn", 0u32.to_le_bytes().to_vec()),
+            ("topic", topic.as_bytes().to_vec()),
+        ],
+        &connection_header,
+    )
+}
+
+/// A random beam at `stamp_s`; with probability 0.05 each, a zero stamp, a
+/// random-bits angle or range and a bin count that disagrees with the
+/// intensities.
+fn random_acoustic_beam(
+    rng: &mut ChaCha8Rng,
+    stamp_s: f64,
+) -> echofield_datasets::miniking::acoustic_beam::AcousticBeam {
+    let bins: usize = rng.random_range(0..300);
+    echofield_datasets::miniking::acoustic_beam::AcousticBeam {
+        seq: rng.random(),
+        stamp_s: if rng.random_bool(0.05) { 0.0 } else { stamp_s },
+        frame_id: "sonar".into(),
+        angle_deg: if rng.random_bool(0.05) {
+            f32::from_bits(rng.random())
+        } else {
+            rng.random_range(0.0..360.0)
+        },
+        range_max_m: if rng.random_bool(0.05) {
+            f32::from_bits(rng.random())
+        } else {
+            rng.random_range(0.1..100.0)
+        },
+        bins: if rng.random_bool(0.05) {
+            rng.random()
+        } else {
+            bins as i32
+        },
+        intensities: (0..bins).map(|_| rng.random()).collect(),
+    }
 }

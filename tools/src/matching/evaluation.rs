@@ -49,6 +49,7 @@ use super::MissionRotations;
 use crate::slam::SlamConfig;
 use anyhow::Result;
 use echofield_frontend::icp::{IcpConfig, icp, kdtree::KdTree};
+use echofield_frontend::image::AcousticImage;
 use echofield_frontend::matcher::{MatchOutcome, SearchWindow, match_scan, mean_score};
 use echofield_frontend::motion::reference_from_beams;
 use echofield_frontend::off_axis::OffAxisSuppression;
@@ -65,9 +66,16 @@ use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::time::Instant;
 
-/// Parameters of the evaluation.
+/// The trial protocol of the matcher evaluation (module doc): how pairs
+/// are chosen, how initial guesses are drawn and when a trial succeeds.
+///
+/// Not [`crate::slam::EvaluationConfig`], which judges a pipeline run's
+/// output (trajectory errors, loop precision and recall) against ground
+/// truth: this one drives single matches and ICP runs from perturbed
+/// guesses. It is not a config-file section; `echofield bench-matcher`
+/// sets it from its options.
 #[derive(Clone, Debug, PartialEq, Serialize)]
-pub struct EvaluationConfig {
+pub struct TrialConfig {
     pub trials_per_pair: usize,
     pub max_initial_error_m: f64,
     pub max_initial_error_rad: f64,
@@ -86,7 +94,7 @@ pub struct EvaluationConfig {
     pub icp: IcpConfig,
 }
 
-impl Default for EvaluationConfig {
+impl Default for TrialConfig {
     fn default() -> Self {
         Self {
             trials_per_pair: 5,
@@ -189,7 +197,7 @@ pub struct Bias {
 /// Everything measured.
 #[derive(Clone, Debug, Serialize)]
 pub struct Evaluation {
-    pub config: EvaluationConfig,
+    pub config: TrialConfig,
     pub rotations: usize,
     /// Rotations without a usable scan (too few ranges).
     pub rotations_without_scan: usize,
@@ -201,121 +209,24 @@ pub struct Evaluation {
 }
 
 /// Runs the evaluation on a mission with ground truth.
+///
+/// Errors when the mission has no ground truth at any rotation's reference
+/// time, when the ground-truth navigation cannot be built, or when an image
+/// or a match fails on the mission's data.
 pub fn evaluate(
     mission: &MissionRotations,
     config: &SlamConfig,
-    eval: &EvaluationConfig,
+    eval: &TrialConfig,
 ) -> Result<Evaluation> {
     let n = mission.rotations.len();
     let scans: Vec<Option<Scan>> = (0..n).map(|k| mission.scan(k, config).ok()).collect();
-    let truths: Vec<Option<Se2>> = (0..n)
-        .map(|k| {
-            super::ground_truth_at(
-                &mission.mission.ground_truth,
-                mission.rotations[k].reference_stamp_s,
-            )
-        })
-        .collect();
-    if truths.iter().all(Option::is_none) {
-        anyhow::bail!("the mission has no ground truth at the rotations' reference times");
-    }
+    let truths = rotation_truths(mission)?;
     let exact_scans = exact_scans(mission, config)?;
     let mut rng = ChaCha8Rng::seed_from_u64(eval.seed);
     let matchable: Vec<bool> = scans.iter().map(Option::is_some).collect();
     let (pairs, overlapping_pairs) =
         choose_pairs(&exact_scans, &truths, &matchable, eval, &mut rng);
-    let window = SearchWindow::new(
-        eval.max_initial_error_m + 0.5,
-        eval.max_initial_error_m + 0.5,
-        (eval.max_initial_error_rad + 2.0_f64.to_radians()).min(std::f64::consts::PI),
-    );
-    let mut trials = Vec::new();
-    // Pairs are grouped by image so each image is built once.
-    let mut by_image: BTreeMap<usize, Vec<Pair>> = BTreeMap::new();
-    for pair in &pairs {
-        by_image.entry(pair.image).or_default().push(*pair);
-    }
-    for (j, group) in by_image {
-        let Some(target) = &scans[j] else {
-            continue; // not drawn: no scan with this navigation
-        };
-        let image = mission.image(j, config)?;
-        let target = &target.points;
-        for pair in group {
-            let (k, kind) = (pair.scan, pair.kind);
-            let Some(source) = &scans[k] else {
-                continue;
-            };
-            let source = &source.points;
-            let truth = truths[j]
-                .expect("pairs have truth")
-                .between(&truths[k].expect("pairs have truth"));
-            for _ in 0..eval.trials_per_pair {
-                let (prior, e_m, e_rad) = perturb(&truth, eval, &mut rng);
-                let base = |method, result: Option<Se2>, time_s, nees, confident| {
-                    let error = result.map(|r| truth.between(&r));
-                    let final_error_m = error.map(|e| e.translation().norm());
-                    let final_error_rad = error.map(|e| e.theta().abs());
-                    Trial {
-                        scan: k,
-                        image: j,
-                        kind,
-                        constraint: pair.constraint,
-                        method,
-                        initial_error_m: e_m,
-                        initial_error_rad: e_rad,
-                        final_error_m,
-                        final_error_rad,
-                        success: final_error_m.is_some_and(|m| m < eval.success_m)
-                            && final_error_rad.is_some_and(|r| r < eval.success_rad),
-                        time_s,
-                        nees,
-                        confident,
-                        mean_score: None,
-                        mean_score_at_truth: None,
-                        truth: truth.to_vector().into(),
-                        estimate: result.map(|r| r.to_vector().into()),
-                        coarse_estimate: None,
-                    }
-                };
-                let start = Instant::now();
-                let outcome = match_scan(source, &image, &prior, &window, &config.matcher)?;
-                let time_s = start.elapsed().as_secs_f64();
-                let (pose, nees, confident) = match &outcome {
-                    MatchOutcome::Match(m) => {
-                        let e = m.image_from_scan.to_vector() - truth.to_vector();
-                        let e = Vector3::new(e.x, e.y, wrap_angle(e.z));
-                        let nees = m
-                            .covariance
-                            .try_inverse()
-                            .map(|info| (e.transpose() * info * e)[0]);
-                        let xy = m.covariance.fixed_view::<2, 2>(0, 0).symmetric_eigen();
-                        let confident = xy.eigenvalues.max().sqrt() < eval.success_m
-                            && m.covariance[(2, 2)].sqrt() < eval.success_rad;
-                        (Some(m.image_from_scan), nees, Some(confident))
-                    }
-                    MatchOutcome::NoMatch { .. } => (None, None, Some(false)),
-                };
-                let mut trial = base(Method::AcousticImage, pose, time_s, nees, confident);
-                if let MatchOutcome::Match(m) = &outcome {
-                    trial.mean_score = Some(mean_score(source, &image, &m.image_from_scan));
-                    trial.mean_score_at_truth = Some(mean_score(source, &image, &truth));
-                    trial.coarse_estimate = Some(m.coarse.to_vector().into());
-                }
-                trials.push(trial);
-                let start = Instant::now();
-                let result = icp(source, target, &prior, &eval.icp).ok();
-                let time_s = start.elapsed().as_secs_f64();
-                trials.push(base(
-                    Method::Icp,
-                    result.map(|r| r.target_from_source),
-                    time_s,
-                    None,
-                    None,
-                ));
-            }
-        }
-    }
+    let trials = run_trials(mission, config, eval, &scans, &truths, &pairs, &mut rng)?;
     let mut pair_counts = BTreeMap::new();
     for pair in &pairs {
         *pair_counts.entry(format!("{:?}", pair.kind)).or_insert(0) += 1;
@@ -329,6 +240,212 @@ pub fn evaluate(
         chosen_pairs: pairs,
         trials,
     })
+}
+
+/// The ground-truth pose (world frame) at each rotation's reference time,
+/// `None` where the ground truth does not cover it. Errors when it covers
+/// none of them.
+fn rotation_truths(mission: &MissionRotations) -> Result<Vec<Option<Se2>>> {
+    let truths: Vec<Option<Se2>> = mission
+        .rotations
+        .iter()
+        .map(|rotation| {
+            super::ground_truth_at(&mission.mission.ground_truth, rotation.reference_stamp_s)
+        })
+        .collect();
+    if truths.iter().all(Option::is_none) {
+        anyhow::bail!("the mission has no ground truth at the rotations' reference times");
+    }
+    Ok(truths)
+}
+
+/// The matcher's search window: just wider than the largest initial error
+/// drawn (0.5 m and 2° of margin; the heading half-width at most π).
+fn trial_window(eval: &TrialConfig) -> SearchWindow {
+    SearchWindow::new(
+        eval.max_initial_error_m + 0.5,
+        eval.max_initial_error_m + 0.5,
+        (eval.max_initial_error_rad + 2.0_f64.to_radians()).min(std::f64::consts::PI),
+    )
+}
+
+/// Runs `trials_per_pair` trials of both methods on every pair, in the
+/// order of `pairs` within each image (pairs are grouped by image so each
+/// image is built once). Precondition: every pair has ground truth at both
+/// rotations (as [`choose_pairs`] guarantees); pairs whose scan or image
+/// rotation has no scan with the evaluated navigation are skipped.
+fn run_trials(
+    mission: &MissionRotations,
+    config: &SlamConfig,
+    eval: &TrialConfig,
+    scans: &[Option<Scan>],
+    truths: &[Option<Se2>],
+    pairs: &[Pair],
+    rng: &mut ChaCha8Rng,
+) -> Result<Vec<Trial>> {
+    let window = trial_window(eval);
+    let mut trials = Vec::new();
+    let mut by_image: BTreeMap<usize, Vec<Pair>> = BTreeMap::new();
+    for pair in pairs {
+        by_image.entry(pair.image).or_default().push(*pair);
+    }
+    for (j, group) in by_image {
+        let Some(target) = &scans[j] else {
+            continue; // not drawn: no scan with this navigation
+        };
+        let image = mission.image(j, config)?;
+        for pair in group {
+            let Some(source) = &scans[pair.scan] else {
+                continue;
+            };
+            let (Some(truth_j), Some(truth_k)) = (truths[j], truths[pair.scan]) else {
+                continue; // not drawn: choose_pairs keeps pairs with truth only
+            };
+            let context = TrialContext {
+                pair,
+                truth: truth_j.between(&truth_k),
+                source: &source.points,
+                target: &target.points,
+                image: &image,
+                window: &window,
+            };
+            for _ in 0..eval.trials_per_pair {
+                let (prior, e_m, e_rad) = perturb(&context.truth, eval, rng);
+                let start = TrialStart {
+                    prior,
+                    error_m: e_m,
+                    error_rad: e_rad,
+                };
+                trials.push(matcher_trial(&context, &start, config, eval)?);
+                trials.push(icp_trial(&context, &start, eval));
+            }
+        }
+    }
+    Ok(trials)
+}
+
+/// What the trials of one pair share.
+struct TrialContext<'a> {
+    pair: Pair,
+    /// The true `image_from_scan`.
+    truth: Se2,
+    /// `S_K` (scan frame) and `S_J` (image frame).
+    source: &'a [Point2<f64>],
+    target: &'a [Point2<f64>],
+    image: &'a AcousticImage,
+    window: &'a SearchWindow,
+}
+
+/// The initial guess of one trial and the size of its error (m, |rad|).
+struct TrialStart {
+    prior: Se2,
+    error_m: f64,
+    error_rad: f64,
+}
+
+impl TrialContext<'_> {
+    /// The trial record of `method` with estimate `result`; the fields
+    /// that only the acoustic-image matcher fills (scores, coarse estimate)
+    /// are `None`.
+    fn trial(
+        &self,
+        start: &TrialStart,
+        eval: &TrialConfig,
+        method: Method,
+        result: Option<Se2>,
+        time_s: f64,
+    ) -> Trial {
+        let error = result.map(|r| self.truth.between(&r));
+        let final_error_m = error.map(|e| e.translation().norm());
+        let final_error_rad = error.map(|e| e.theta().abs());
+        Trial {
+            scan: self.pair.scan,
+            image: self.pair.image,
+            kind: self.pair.kind,
+            constraint: self.pair.constraint,
+            method,
+            initial_error_m: start.error_m,
+            initial_error_rad: start.error_rad,
+            final_error_m,
+            final_error_rad,
+            success: final_error_m.is_some_and(|m| m < eval.success_m)
+                && final_error_rad.is_some_and(|r| r < eval.success_rad),
+            time_s,
+            nees: None,
+            confident: None,
+            mean_score: None,
+            mean_score_at_truth: None,
+            truth: self.truth.to_vector().into(),
+            estimate: result.map(|r| r.to_vector().into()),
+            coarse_estimate: None,
+        }
+    }
+}
+
+/// One acoustic-image match from `start.prior`, timed, with its NEES,
+/// confidence and the mean scores of its estimate and of the truth.
+fn matcher_trial(
+    context: &TrialContext,
+    start: &TrialStart,
+    config: &SlamConfig,
+    eval: &TrialConfig,
+) -> Result<Trial> {
+    let clock = Instant::now();
+    let outcome = match_scan(
+        context.source,
+        context.image,
+        &start.prior,
+        context.window,
+        &config.matcher,
+    )?;
+    let time_s = clock.elapsed().as_secs_f64();
+    let MatchOutcome::Match(m) = &outcome else {
+        let mut trial = context.trial(start, eval, Method::AcousticImage, None, time_s);
+        trial.confident = Some(false);
+        return Ok(trial);
+    };
+    let truth = &context.truth;
+    let e = m.image_from_scan.to_vector() - truth.to_vector();
+    let e = Vector3::new(e.x, e.y, wrap_angle(e.z));
+    let xy = m.covariance.fixed_view::<2, 2>(0, 0).symmetric_eigen();
+    let mut trial = context.trial(
+        start,
+        eval,
+        Method::AcousticImage,
+        Some(m.image_from_scan),
+        time_s,
+    );
+    trial.nees = m
+        .covariance
+        .try_inverse()
+        .map(|info| (e.transpose() * info * e)[0]);
+    trial.confident = Some(
+        xy.eigenvalues.max().sqrt() < eval.success_m
+            && m.covariance[(2, 2)].sqrt() < eval.success_rad,
+    );
+    trial.mean_score = Some(mean_score(
+        context.source,
+        context.image,
+        &m.image_from_scan,
+    ));
+    trial.mean_score_at_truth = Some(mean_score(context.source, context.image, truth));
+    trial.coarse_estimate = Some(m.coarse.to_vector().into());
+    Ok(trial)
+}
+
+/// One point-to-point ICP run of `S_K` onto `S_J` from `start.prior`,
+/// timed; an ICP failure is a trial without an estimate.
+fn icp_trial(context: &TrialContext, start: &TrialStart, eval: &TrialConfig) -> Trial {
+    let clock = Instant::now();
+    let result = icp(context.source, context.target, &start.prior, &eval.icp).ok();
+    let time_s = clock.elapsed().as_secs_f64();
+    context.trial(
+        start,
+        eval,
+        Method::Icp,
+        result.map(|r| r.target_from_source),
+        time_s,
+    )
 }
 
 /// Scans built with the ground truth as navigation (exact motion
@@ -362,7 +479,7 @@ fn choose_pairs(
     scans: &[Option<Scan>],
     truths: &[Option<Se2>],
     matchable: &[bool],
-    eval: &EvaluationConfig,
+    eval: &TrialConfig,
     rng: &mut ChaCha8Rng,
 ) -> (Vec<Pair>, BTreeMap<String, usize>) {
     let trees: Vec<Option<KdTree>> = scans
@@ -425,7 +542,7 @@ fn constraint(
     target: &[Point2<f64>],
     tree: &KdTree,
     image_from_scan: &Se2,
-    eval: &EvaluationConfig,
+    eval: &TrialConfig,
 ) -> f64 {
     let mut sum = Matrix2::zeros();
     let mut count = 0;
@@ -481,7 +598,7 @@ fn overlap(points: &[Point2<f64>], tree: &KdTree, image_from_scan: &Se2, radius:
 }
 
 /// The truth with a random error; returns the guess and the error sizes.
-fn perturb(truth: &Se2, eval: &EvaluationConfig, rng: &mut ChaCha8Rng) -> (Se2, f64, f64) {
+fn perturb(truth: &Se2, eval: &TrialConfig, rng: &mut ChaCha8Rng) -> (Se2, f64, f64) {
     let length = eval.max_initial_error_m * rng.random::<f64>();
     let direction = std::f64::consts::TAU * rng.random::<f64>();
     let angle = eval.max_initial_error_rad * (2.0 * rng.random::<f64>() - 1.0);
@@ -500,10 +617,9 @@ impl Evaluation {
     /// and success by initial translation error; median final error of the
     /// successes, mean time; the matcher's mean NEES.
     pub fn table(&self) -> String {
-        let bins = [(0.0, 1.0), (1.0, 3.0), (3.0, f64::INFINITY)];
         let max = self.config.max_initial_error_m;
-        let mut out = String::new();
         let min_c = self.config.min_constraint;
+        let mut out = String::new();
         let _ = writeln!(
             out,
             "| pairs | method | trials | success | constrained pairs (≥ {min_c}) | init <1 m | init 1-3 m | init 3-{max:.0} m | median error (succ.) | mean time | mean NEES (succ.) | confident: share, success | failures scoring ≥ truth | bias (succ.): along, heading, scale |"
@@ -519,113 +635,63 @@ impl Evaluation {
                     .iter()
                     .filter(|t| t.kind == kind && t.method == method)
                     .collect();
-                if trials.is_empty() {
-                    continue;
+                if !trials.is_empty() {
+                    out.push_str(&self.table_row(kind, method, &trials));
                 }
-                let rate = |ts: &[&Trial]| {
-                    if ts.is_empty() {
-                        "-".to_string()
-                    } else {
-                        let ok = ts.iter().filter(|t| t.success).count();
-                        format!(
-                            "{:.1}% ({ok}/{})",
-                            100.0 * ok as f64 / ts.len() as f64,
-                            ts.len()
-                        )
-                    }
-                };
-                let by_bin: Vec<String> = bins
-                    .iter()
-                    .map(|&(lo, hi)| {
-                        let ts: Vec<&Trial> = trials
-                            .iter()
-                            .copied()
-                            .filter(|t| t.initial_error_m >= lo && t.initial_error_m < hi)
-                            .collect();
-                        rate(&ts)
-                    })
-                    .collect();
-                let mut errors_m: Vec<f64> = trials
-                    .iter()
-                    .filter(|t| t.success)
-                    .filter_map(|t| t.final_error_m)
-                    .collect();
-                let mut errors_deg: Vec<f64> = trials
-                    .iter()
-                    .filter(|t| t.success)
-                    .filter_map(|t| t.final_error_rad.map(f64::to_degrees))
-                    .collect();
-                let median_error = match (median(&mut errors_m), median(&mut errors_deg)) {
-                    (Some(m), Some(d)) => format!("{:.3} m, {d:.2}°", m),
-                    _ => "-".into(),
-                };
-                let mean_ms =
-                    1e3 * trials.iter().map(|t| t.time_s).sum::<f64>() / trials.len() as f64;
-                let nees: Vec<f64> = trials
-                    .iter()
-                    .filter(|t| t.success)
-                    .filter_map(|t| t.nees)
-                    .collect();
-                let mean_nees = if nees.is_empty() {
-                    "-".into()
-                } else {
-                    format!("{:.2}", nees.iter().sum::<f64>() / nees.len() as f64)
-                };
-                let confident: Vec<&Trial> = trials
-                    .iter()
-                    .copied()
-                    .filter(|t| t.confident == Some(true))
-                    .collect();
-                let confident = if method == Method::Icp {
-                    "-".to_string()
-                } else {
-                    format!(
-                        "{:.0}%, {}",
-                        100.0 * confident.len() as f64 / trials.len() as f64,
-                        rate(&confident)
-                    )
-                };
-                // A failure whose estimate scores at least as high as the
-                // truth is an ambiguity of eq. (5), not of the search.
-                let failures: Vec<&Trial> = trials.iter().copied().filter(|t| !t.success).collect();
-                let ambiguous = failures
-                    .iter()
-                    .filter(|t| matches!((t.mean_score, t.mean_score_at_truth), (Some(e), Some(t)) if e >= t))
-                    .count();
-                let ambiguous = if method == Method::Icp {
-                    "-".to_string()
-                } else {
-                    format!("{ambiguous}/{}", failures.len())
-                };
-                let constrained: Vec<&Trial> = trials
-                    .iter()
-                    .copied()
-                    .filter(|t| t.constraint >= min_c)
-                    .collect();
-                let bias = match self.bias(kind, method) {
-                    Some(b) => format!(
-                        "{:+.3} ± {:.3} m, {:+.3} ± {:.3}°, {:+.2}%",
-                        b.along_m,
-                        b.along_standard_error_m,
-                        b.heading_rad.to_degrees(),
-                        b.heading_standard_error_rad.to_degrees(),
-                        100.0 * b.scale
-                    ),
-                    None => "-".into(),
-                };
-                let _ = writeln!(
-                    out,
-                    "| {kind:?} | {method:?} | {} | {} | {} | {} | {} | {} | {median_error} | {mean_ms:.2} ms | {mean_nees} | {confident} | {ambiguous} | {bias} |",
-                    trials.len(),
-                    rate(&trials),
-                    rate(&constrained),
-                    by_bin[0],
-                    by_bin[1],
-                    by_bin[2],
-                );
             }
         }
         out
+    }
+
+    /// One row of [`Evaluation::table`]: the `trials` (not empty) of
+    /// `method` on `kind` pairs, ending with a newline.
+    fn table_row(&self, kind: PairKind, method: Method, trials: &[&Trial]) -> String {
+        let bins = [(0.0, 1.0), (1.0, 3.0), (3.0, f64::INFINITY)];
+        let by_bin: Vec<String> = bins
+            .iter()
+            .map(|&(lo, hi)| {
+                let ts: Vec<&Trial> = trials
+                    .iter()
+                    .copied()
+                    .filter(|t| t.initial_error_m >= lo && t.initial_error_m < hi)
+                    .collect();
+                success_cell(&ts)
+            })
+            .collect();
+        let constrained: Vec<&Trial> = trials
+            .iter()
+            .copied()
+            .filter(|t| t.constraint >= self.config.min_constraint)
+            .collect();
+        let mean_ms = 1e3 * trials.iter().map(|t| t.time_s).sum::<f64>() / trials.len() as f64;
+        let (median_error, mean_nees) = (median_error_cell(trials), mean_nees_cell(trials));
+        let (confident, ambiguous) = if method == Method::Icp {
+            ("-".to_string(), "-".to_string())
+        } else {
+            (confident_cell(trials), ambiguous_cell(trials))
+        };
+        let bias = self.bias(kind, method).map_or_else(
+            || "-".into(),
+            |b| {
+                format!(
+                    "{:+.3} ± {:.3} m, {:+.3} ± {:.3}°, {:+.2}%",
+                    b.along_m,
+                    b.along_standard_error_m,
+                    b.heading_rad.to_degrees(),
+                    b.heading_standard_error_rad.to_degrees(),
+                    100.0 * b.scale
+                )
+            },
+        );
+        format!(
+            "| {kind:?} | {method:?} | {} | {} | {} | {} | {} | {} | {median_error} | {mean_ms:.2} ms | {mean_nees} | {confident} | {ambiguous} | {bias} |\n",
+            trials.len(),
+            success_cell(trials),
+            success_cell(&constrained),
+            by_bin[0],
+            by_bin[1],
+            by_bin[2],
+        )
     }
 
     /// The mean signed error of `method`'s successes on `kind` pairs
@@ -684,6 +750,78 @@ impl Evaluation {
     }
 }
 
+/// "rate% (successes/trials)" of `trials`, "-" when there are none.
+fn success_cell(trials: &[&Trial]) -> String {
+    if trials.is_empty() {
+        return "-".to_string();
+    }
+    let ok = trials.iter().filter(|t| t.success).count();
+    format!(
+        "{:.1}% ({ok}/{})",
+        100.0 * ok as f64 / trials.len() as f64,
+        trials.len()
+    )
+}
+
+/// Median final translation (m) and heading (°) error of the successes,
+/// "-" when there are none.
+fn median_error_cell(trials: &[&Trial]) -> String {
+    let mut errors_m: Vec<f64> = trials
+        .iter()
+        .filter(|t| t.success)
+        .filter_map(|t| t.final_error_m)
+        .collect();
+    let mut errors_deg: Vec<f64> = trials
+        .iter()
+        .filter(|t| t.success)
+        .filter_map(|t| t.final_error_rad.map(f64::to_degrees))
+        .collect();
+    match (median(&mut errors_m), median(&mut errors_deg)) {
+        (Some(m), Some(d)) => format!("{:.3} m, {d:.2}°", m),
+        _ => "-".into(),
+    }
+}
+
+/// Mean NEES of the successes that have one, "-" when none has.
+fn mean_nees_cell(trials: &[&Trial]) -> String {
+    let nees: Vec<f64> = trials
+        .iter()
+        .filter(|t| t.success)
+        .filter_map(|t| t.nees)
+        .collect();
+    if nees.is_empty() {
+        "-".into()
+    } else {
+        format!("{:.2}", nees.iter().sum::<f64>() / nees.len() as f64)
+    }
+}
+
+/// Share of the (not empty) `trials` whose covariance claims success-level
+/// precision, and the success rate of those.
+fn confident_cell(trials: &[&Trial]) -> String {
+    let confident: Vec<&Trial> = trials
+        .iter()
+        .copied()
+        .filter(|t| t.confident == Some(true))
+        .collect();
+    format!(
+        "{:.0}%, {}",
+        100.0 * confident.len() as f64 / trials.len() as f64,
+        success_cell(&confident)
+    )
+}
+
+/// "ambiguous/failures": a failure whose estimate scores at least as high
+/// as the truth is an ambiguity of eq. (5), not of the search.
+fn ambiguous_cell(trials: &[&Trial]) -> String {
+    let failures: Vec<&Trial> = trials.iter().copied().filter(|t| !t.success).collect();
+    let ambiguous = failures
+        .iter()
+        .filter(|t| matches!((t.mean_score, t.mean_score_at_truth), (Some(e), Some(t)) if e >= t))
+        .count();
+    format!("{ambiguous}/{}", failures.len())
+}
+
 /// Mean and standard error of the mean (sample standard deviation / √n)
 /// of at least two values.
 fn mean_and_standard_error(values: impl Iterator<Item = f64> + Clone) -> (f64, f64) {
@@ -707,7 +845,7 @@ mod tests {
 
     #[test]
     fn perturbations_stay_within_the_bounds() {
-        let eval = EvaluationConfig::default();
+        let eval = TrialConfig::default();
         let mut rng = ChaCha8Rng::seed_from_u64(2);
         let truth = Se2::new(3.0, -1.0, 2.9);
         let mut largest = (0.0_f64, 0.0_f64);
@@ -785,7 +923,7 @@ mod tests {
             trial(Method::Icp, true, [2.0, 0.0, 0.0], [2.2, 0.0, 0.1]),
         ];
         let evaluation = Evaluation {
-            config: EvaluationConfig::default(),
+            config: TrialConfig::default(),
             rotations: 2,
             rotations_without_scan: 0,
             pairs: BTreeMap::new(),

@@ -96,77 +96,117 @@ impl OutputFolder {
         sync_dir(&fresh);
         let (parent, name) = split(&self.target)?;
         if let Err(e) = check_replaceable(&self.target, &self.known) {
-            let aside = free_sibling(&parent, &format!("{name}.new"));
-            std::fs::rename(&fresh, &aside)
-                .with_context(|| format!("cannot keep the new outputs in {}", aside.display()))?;
-            self.fresh = None;
-            self.created.clear();
-            return Err(e.context(format!(
-                "the new outputs are in {}, the target changed during the run",
-                aside.display()
-            )));
+            return Err(self.keep_aside(&fresh, &parent, &name, e));
         }
-        if std::fs::symlink_metadata(&self.target).is_err() {
-            match std::fs::rename(&fresh, &self.target) {
-                Ok(()) => {
-                    self.fresh = None;
-                    self.created.clear();
-                    sync_dir(&parent);
-                    return Ok(());
-                }
-                // Another run put its output there since: replace it below.
-                Err(e)
-                    if matches!(
-                        e.kind(),
-                        std::io::ErrorKind::DirectoryNotEmpty | std::io::ErrorKind::AlreadyExists
-                    ) =>
-                {
-                    check_replaceable(&self.target, &self.known)?;
-                }
-                Err(e) => {
-                    return Err(e).with_context(|| {
-                        format!("cannot move the new outputs to {}", self.target.display())
-                    });
-                }
-            }
+        if std::fs::symlink_metadata(&self.target).is_err() && self.move_into_place(&fresh)? {
+            self.committed(&parent);
+            return Ok(());
         }
-        // `previous`: where the previous output ends up.
-        let previous = if try_exchange && exchange(&fresh, &self.target)? {
-            fresh.clone()
-        } else {
-            let aside = fresh_name(&parent, &format!("old-{name}"));
-            std::fs::rename(&self.target, &aside).with_context(|| {
-                format!(
-                    "cannot move the previous output {} aside",
-                    self.target.display()
-                )
-            })?;
-            if let Err(e) = std::fs::rename(&fresh, &self.target) {
-                // Put the previous output back before reporting.
-                let _ = std::fs::rename(&aside, &self.target);
-                return Err(e).with_context(|| {
-                    format!("cannot move the new outputs to {}", self.target.display())
-                });
-            }
-            aside
-        };
+        let previous = self.swap_in(&fresh, &parent, &name, try_exchange)?;
+        self.committed(&parent);
+        delete_previous(&parent, &name, &previous);
+        Ok(())
+    }
+
+    /// The new outputs are the target now: nothing to clean up on drop.
+    fn committed(&mut self, parent: &Path) {
         self.fresh = None;
         self.created.clear();
-        sync_dir(&parent);
-        // A rename first, so that a kill while deleting leaves an entry that
-        // the next run removes rather than moves back.
-        let doomed = fresh_name(&parent, &format!("del-{name}"));
-        let doomed = match std::fs::rename(&previous, &doomed) {
-            Ok(()) => doomed,
-            Err(_) => previous,
-        };
-        if let Err(e) = std::fs::remove_dir_all(&doomed) {
-            tracing::warn!(
-                "cannot delete the previous output, moved to {}: {e}",
-                doomed.display()
-            );
+        sync_dir(parent);
+    }
+
+    /// Moves the new outputs beside the target (it became something
+    /// echofield may not replace: `e`), to `NAME.new` or a free variant of
+    /// it; the error says where they are.
+    fn keep_aside(
+        &mut self,
+        fresh: &Path,
+        parent: &Path,
+        name: &str,
+        e: anyhow::Error,
+    ) -> anyhow::Error {
+        let aside = free_sibling(parent, &format!("{name}.new"));
+        if let Err(rename) = std::fs::rename(fresh, &aside)
+            .with_context(|| format!("cannot keep the new outputs in {}", aside.display()))
+        {
+            return rename;
         }
-        Ok(())
+        self.fresh = None;
+        self.created.clear();
+        e.context(format!(
+            "the new outputs are in {}, the target changed during the run",
+            aside.display()
+        ))
+    }
+
+    /// Renames the new outputs to the target, which did not exist: true
+    /// when done, false when another run put its output there since (it is
+    /// replaced by [`Self::swap_in`] after checking it may be).
+    fn move_into_place(&self, fresh: &Path) -> Result<bool> {
+        match std::fs::rename(fresh, &self.target) {
+            Ok(()) => Ok(true),
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    std::io::ErrorKind::DirectoryNotEmpty | std::io::ErrorKind::AlreadyExists
+                ) =>
+            {
+                check_replaceable(&self.target, &self.known)?;
+                Ok(false)
+            }
+            Err(e) => Err(e).with_context(|| {
+                format!("cannot move the new outputs to {}", self.target.display())
+            }),
+        }
+    }
+
+    /// Replaces the existing target with the new outputs, by an atomic
+    /// exchange when `try_exchange` and the system can, else by moving the
+    /// target aside (`old-NAME...`) and the new outputs in (putting the
+    /// previous output back when that fails). Returns where the previous
+    /// output is now.
+    fn swap_in(
+        &self,
+        fresh: &Path,
+        parent: &Path,
+        name: &str,
+        try_exchange: bool,
+    ) -> Result<PathBuf> {
+        if try_exchange && exchange(fresh, &self.target)? {
+            return Ok(fresh.to_path_buf());
+        }
+        let aside = fresh_name(parent, &format!("old-{name}"));
+        std::fs::rename(&self.target, &aside).with_context(|| {
+            format!(
+                "cannot move the previous output {} aside",
+                self.target.display()
+            )
+        })?;
+        if let Err(e) = std::fs::rename(fresh, &self.target) {
+            // Put the previous output back before reporting.
+            let _ = std::fs::rename(&aside, &self.target);
+            return Err(e).with_context(|| {
+                format!("cannot move the new outputs to {}", self.target.display())
+            });
+        }
+        Ok(aside)
+    }
+}
+
+/// Deletes the previous output at `previous` (a warning when it cannot).
+/// A rename first, so that a kill while deleting leaves an entry that the
+/// next run removes rather than moves back.
+fn delete_previous(parent: &Path, name: &str, previous: &Path) {
+    let doomed = fresh_name(parent, &format!("del-{name}"));
+    let doomed = match std::fs::rename(previous, &doomed) {
+        Ok(()) => doomed,
+        Err(_) => previous.to_path_buf(),
+    };
+    if let Err(e) = std::fs::remove_dir_all(&doomed) {
+        tracing::warn!(
+            "cannot delete the previous output, moved to {}: {e}",
+            doomed.display()
+        );
     }
 }
 

@@ -70,17 +70,7 @@ pub fn loops_png(
     caption: &str,
     size_px: (u32, u32),
 ) -> Result<Vec<u8>> {
-    // Rejected classes by check name, for stable colours and legend order.
-    let mut rejected: BTreeMap<&str, Vec<&LoopSegment>> = BTreeMap::new();
-    let mut accepted: [Vec<&LoopSegment>; 3] = Default::default();
-    for l in loops {
-        match &l.class {
-            LoopClass::Rejected(check) => rejected.entry(check.as_str()).or_default().push(l),
-            LoopClass::Accepted(None) => accepted[0].push(l),
-            LoopClass::Accepted(Some(true)) => accepted[1].push(l),
-            LoopClass::Accepted(Some(false)) => accepted[2].push(l),
-        }
-    }
+    let (rejected, accepted) = by_class(loops);
     render_png(size_px.0, size_px.1, |root| {
         let area_px = map_plot_area_px(root, caption)?;
         let (xs, ys) = equal_aspect_ranges(
@@ -118,29 +108,51 @@ pub fn loops_png(
                 .label(format!("rejected: {check} ({})", segments.len()))
                 .legend(legend_line(colour));
         }
-        let names = [
-            "accepted (no ground truth)",
-            "accepted, true",
-            "accepted, false",
-        ];
-        let colours = [ACCEPTED_UNKNOWN, ACCEPTED_TRUE, ACCEPTED_FALSE];
-        let widths = [2, 2, 3];
-        for (((segments, name), colour), width) in
-            accepted.iter().zip(names).zip(colours).zip(widths)
-        {
-            if segments.is_empty() {
-                continue;
-            }
-            draw_segments(&mut chart, segments, colour.stroke_width(width))?
-                .label(format!("{name} ({})", segments.len()))
-                .legend(legend_line(colour));
-        }
+        draw_accepted(&mut chart, &accepted)?;
         draw_legend(&mut chart, corner)?;
         Ok(())
     })
 }
 
 type MapChart<'a, 'b> = super::Chart<'a, 'b>;
+
+/// The rejected candidates by check name (for stable colours and legend
+/// order) and the accepted ones: without ground truth, true, false.
+#[allow(clippy::type_complexity)]
+fn by_class(loops: &[LoopSegment]) -> (BTreeMap<&str, Vec<&LoopSegment>>, [Vec<&LoopSegment>; 3]) {
+    let mut rejected: BTreeMap<&str, Vec<&LoopSegment>> = BTreeMap::new();
+    let mut accepted: [Vec<&LoopSegment>; 3] = Default::default();
+    for l in loops {
+        match &l.class {
+            LoopClass::Rejected(check) => rejected.entry(check.as_str()).or_default().push(l),
+            LoopClass::Accepted(None) => accepted[0].push(l),
+            LoopClass::Accepted(Some(true)) => accepted[1].push(l),
+            LoopClass::Accepted(Some(false)) => accepted[2].push(l),
+        }
+    }
+    (rejected, accepted)
+}
+
+/// The accepted candidates of [`by_class`], each class (not empty) with its
+/// legend entry.
+fn draw_accepted(chart: &mut MapChart, accepted: &[Vec<&LoopSegment>; 3]) -> Result<()> {
+    let names = [
+        "accepted (no ground truth)",
+        "accepted, true",
+        "accepted, false",
+    ];
+    let colours = [ACCEPTED_UNKNOWN, ACCEPTED_TRUE, ACCEPTED_FALSE];
+    let widths = [2, 2, 3];
+    for (((segments, name), colour), width) in accepted.iter().zip(names).zip(colours).zip(widths) {
+        if segments.is_empty() {
+            continue;
+        }
+        draw_segments(chart, segments, colour.stroke_width(width))?
+            .label(format!("{name} ({})", segments.len()))
+            .legend(legend_line(colour));
+    }
+    Ok(())
+}
 
 fn draw_segments<'c, 'a, 'b>(
     chart: &'c mut MapChart<'a, 'b>,

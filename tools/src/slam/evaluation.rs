@@ -277,19 +277,7 @@ fn recall(
             };
             revisit = true;
             let pair_outcomes = outcomes.get(&(j, k)).map_or(&[][..], Vec::as_slice);
-            let fate = PairFate::of(pair_outcomes);
-            r.pairs += 1;
-            r.budget.add(fate);
-            // Overlaps are at most 1: past every bin's end is the last's.
-            let bins = &mut r.by_overlap;
-            let bin = bins
-                .iter()
-                .position(|b| o < b.max_overlap)
-                .unwrap_or(bins.len().saturating_sub(1));
-            if let Some(bin) = bins.get_mut(bin) {
-                bin.pairs += 1;
-                bin.recalled += usize::from(fate == PairFate::Recalled);
-            }
+            r.count_pair(o, PairFate::of(pair_outcomes));
         }
         if revisit {
             r.nodes += 1;
@@ -301,6 +289,25 @@ fn recall(
         }
     }
     r
+}
+
+impl Recall {
+    /// Counts one recall pair of ground-truth overlap `overlap` that ended
+    /// as `fate`, in the totals and in its overlap bin (overlaps are at
+    /// most 1: past every bin's end is the last's).
+    fn count_pair(&mut self, overlap: f64, fate: PairFate) {
+        self.pairs += 1;
+        self.budget.add(fate);
+        let bins = &mut self.by_overlap;
+        let bin = bins
+            .iter()
+            .position(|b| overlap < b.max_overlap)
+            .unwrap_or(bins.len().saturating_sub(1));
+        if let Some(bin) = bins.get_mut(bin) {
+            bin.pairs += 1;
+            bin.recalled += usize::from(fate == PairFate::Recalled);
+        }
+    }
 }
 
 /// How one examined candidate of a node pair ended.

@@ -85,22 +85,7 @@ fn match_one(
     matcher: &MatcherConfig,
 ) -> Result<SequentialRecord, SlamError> {
     let (prior, prior_cov) = odometry(navigation, prev, node)?;
-    let mut record = SequentialRecord {
-        from: (k - 1) as u64,
-        to: k as u64,
-        prior,
-        prior_covariance: prior_cov,
-        window: seq.gate.window(&prior_cov),
-        matched: None,
-        measurement: None,
-        quality: None,
-        covariance: None,
-        reverse: None,
-        prior_chi2: None,
-        accepted: false,
-        rejected_by: None,
-        no_match: None,
-    };
+    let mut record = unmatched_record(k, prior, prior_cov, seq);
     if !node.has_scan() || prev.image.is_empty() {
         record.rejected_by = Some(RejectReason::NoData);
         return Ok(record);
@@ -142,6 +127,33 @@ fn match_one(
     }
     record.accepted = record.rejected_by.is_none();
     Ok(record)
+}
+
+/// The record of node `k` against node `k - 1` before any match: the
+/// odometry `prior` (`image_from_scan`) with its covariance and the gate's
+/// window for it.
+fn unmatched_record(
+    k: usize,
+    prior: Se2,
+    prior_cov: Matrix3<f64>,
+    seq: &SequentialConfig,
+) -> SequentialRecord {
+    SequentialRecord {
+        from: (k - 1) as u64,
+        to: k as u64,
+        prior,
+        prior_covariance: prior_cov,
+        window: seq.gate.window(&prior_cov),
+        matched: None,
+        measurement: None,
+        quality: None,
+        covariance: None,
+        reverse: None,
+        prior_chi2: None,
+        accepted: false,
+        rejected_by: None,
+        no_match: None,
+    }
 }
 
 /// Records the forward match `m` and judges it by the gate: its mean

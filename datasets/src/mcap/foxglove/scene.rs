@@ -167,6 +167,56 @@ fn color_value(rgba: [f32; 4]) -> Value {
     json!({ "r": rgba[0], "g": rgba[1], "b": rgba[2], "a": rgba[3] })
 }
 
+/// The segments' end points finite and colours within 0-1 (errors name
+/// the segment), and the thickness finite and positive.
+fn check_lines(segments: &[LineSegment], thickness_px: f64) -> Result<(), FieldError> {
+    for (i, s) in segments.iter().enumerate() {
+        let finite = [s.from_m.0, s.from_m.1, s.to_m.0, s.to_m.1]
+            .iter()
+            .all(|v| v.is_finite());
+        if !finite {
+            return Err(FieldError::new(
+                format!("segments[{i}]"),
+                "end point is not finite",
+            ));
+        }
+        if !s.rgba.iter().all(|c| (0.0..=1.0).contains(c)) {
+            return Err(FieldError::new(
+                format!("segments[{i}].rgba"),
+                "colour component outside 0-1",
+            ));
+        }
+    }
+    if thickness_px.is_finite() && thickness_px > 0.0 {
+        Ok(())
+    } else {
+        Err(FieldError::new("thickness_px", "must be finite and > 0"))
+    }
+}
+
+/// A `LINE_LIST` primitive of the segments (one colour per end point),
+/// `thickness_px` screen pixels wide.
+fn line_list(segments: &[LineSegment], thickness_px: f64) -> Value {
+    let mut points = Vec::with_capacity(2 * segments.len());
+    let mut colors = Vec::with_capacity(2 * segments.len());
+    for s in segments {
+        for (x, y) in [s.from_m, s.to_m] {
+            points.push(json!({ "x": x, "y": y, "z": 0.0 }));
+            colors.push(color_value(s.rgba));
+        }
+    }
+    json!({
+        "type": LINE_LIST,
+        "pose": pose_value(&Se2::identity()),
+        "thickness": thickness_px,
+        "scale_invariant": true,
+        "points": points,
+        "color": color_value([1.0, 1.0, 1.0, 1.0]),
+        "colors": colors,
+        "indices": [],
+    })
+}
+
 impl MissionWriter {
     /// Segments as one `foxglove.SceneUpdate` entity `entity_id` in frame
     /// `frame_id`, drawn `thickness_px` screen pixels wide. The entity lives
@@ -181,30 +231,7 @@ impl MissionWriter {
         thickness_px: f64,
         segments: &[LineSegment],
     ) -> Result<(), DatasetError> {
-        let check = segments.iter().enumerate().try_for_each(|(i, s)| {
-            let finite = [s.from_m.0, s.from_m.1, s.to_m.0, s.to_m.1]
-                .iter()
-                .all(|v| v.is_finite());
-            let colour = s.rgba.iter().all(|c| (0.0..=1.0).contains(c));
-            match (finite, colour) {
-                (true, true) => Ok(()),
-                (false, _) => Err(FieldError::new(
-                    format!("segments[{i}]"),
-                    "end point is not finite",
-                )),
-                (true, false) => Err(FieldError::new(
-                    format!("segments[{i}].rgba"),
-                    "colour component outside 0-1",
-                )),
-            }
-        });
-        let check = check.and_then(|_| {
-            if thickness_px.is_finite() && thickness_px > 0.0 {
-                Ok(())
-            } else {
-                Err(FieldError::new("thickness_px", "must be finite and > 0"))
-            }
-        });
+        let check = check_lines(segments, thickness_px);
         self.write_foxglove(
             topic,
             SCENE_UPDATE,
@@ -212,24 +239,7 @@ impl MissionWriter {
             stamp_s,
             check,
             |t| {
-                let mut points = Vec::with_capacity(2 * segments.len());
-                let mut colors = Vec::with_capacity(2 * segments.len());
-                for s in segments {
-                    for (x, y) in [s.from_m, s.to_m] {
-                        points.push(json!({ "x": x, "y": y, "z": 0.0 }));
-                        colors.push(color_value(s.rgba));
-                    }
-                }
-                let line = json!({
-                    "type": LINE_LIST,
-                    "pose": pose_value(&Se2::identity()),
-                    "thickness": thickness_px,
-                    "scale_invariant": true,
-                    "points": points,
-                    "color": color_value([1.0, 1.0, 1.0, 1.0]),
-                    "colors": colors,
-                    "indices": [],
-                });
+                let line = line_list(segments, thickness_px);
                 let entity = json!({
                     "timestamp": t,
                     "frame_id": frame_id,

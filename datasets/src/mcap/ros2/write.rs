@@ -47,37 +47,7 @@ pub fn write_mission_ros2(
         Ros2GroundTruth::Odometry => (Ros2Kind::Odometry, "/ground_truth/odom"),
         Ros2GroundTruth::PoseStamped => (Ros2Kind::PoseStamped, "/ground_truth/pose"),
     };
-    let mut messages: Vec<(f64, usize, usize)> = Vec::new();
-    messages.extend(
-        mission
-            .beams
-            .iter()
-            .enumerate()
-            .map(|(i, r)| (r.stamp_s, 0, i)),
-    );
-    messages.extend(
-        mission
-            .dvl
-            .iter()
-            .enumerate()
-            .map(|(i, r)| (r.stamp_s, 1, i)),
-    );
-    messages.extend(
-        mission
-            .attitude
-            .iter()
-            .enumerate()
-            .map(|(i, r)| (r.stamp_s, 2, i)),
-    );
-    messages.extend(
-        mission
-            .ground_truth
-            .iter()
-            .enumerate()
-            .map(|(i, r)| (r.stamp_s, 3, i)),
-    );
-    messages.sort_by(|a, b| a.0.total_cmp(&b.0));
-    for (stamp_s, stream, i) in messages {
+    for (stamp_s, stream, i) in time_order(mission) {
         let record = format!(
             "{} {i}",
             ["beam", "dvl", "attitude", "ground_truth"][stream]
@@ -85,24 +55,7 @@ pub fn write_mission_ros2(
         let mut w = CdrWriter::new();
         header(&mut w, stamp_s, FRAMES[stream])
             .map_err(|message| DatasetError::parse(path, &record, "stamp_s", message))?;
-        let (kind, topic) = match stream {
-            0 => {
-                sonar_beam(&mut w, &mission.beams[i]);
-                (Ros2Kind::SonarBeam, TOPIC_BEAM)
-            }
-            1 => {
-                twist(&mut w, &mission.dvl[i]);
-                (Ros2Kind::TwistWithCovarianceStamped, TOPIC_DVL)
-            }
-            2 => {
-                imu(&mut w, &mission.attitude[i]);
-                (Ros2Kind::Imu, TOPIC_IMU)
-            }
-            _ => {
-                pose(&mut w, &mission.ground_truth[i], gt_kind.0);
-                gt_kind
-            }
-        };
+        let (kind, topic) = message_body(&mut w, mission, stream, i, gt_kind);
         file.channel(
             topic,
             kind.schema_name(),
@@ -113,6 +66,54 @@ pub fn write_mission_ros2(
         file.write(topic, validate::log_time_ns(stamp_s), &w.into_bytes())?;
     }
     file.finish()
+}
+
+/// Every record of the mission as `(stamp_s, stream, index)`, streams
+/// numbered beam, DVL, attitude, ground truth, sorted by stamp (stable:
+/// equal stamps keep the stream order).
+fn time_order(mission: &Mission) -> Vec<(f64, usize, usize)> {
+    let stamps = [
+        mission.beams.iter().map(|r| r.stamp_s).collect::<Vec<_>>(),
+        mission.dvl.iter().map(|r| r.stamp_s).collect(),
+        mission.attitude.iter().map(|r| r.stamp_s).collect(),
+        mission.ground_truth.iter().map(|r| r.stamp_s).collect(),
+    ];
+    let mut messages: Vec<(f64, usize, usize)> = stamps
+        .iter()
+        .enumerate()
+        .flat_map(|(stream, s)| s.iter().enumerate().map(move |(i, &t)| (t, stream, i)))
+        .collect();
+    messages.sort_by(|a, b| a.0.total_cmp(&b.0));
+    messages
+}
+
+/// Writes the body of record `i` of `stream` (after its header) and
+/// returns its message kind and topic; ground truth as `gt_kind`.
+fn message_body(
+    w: &mut CdrWriter,
+    mission: &Mission,
+    stream: usize,
+    i: usize,
+    gt_kind: (Ros2Kind, &'static str),
+) -> (Ros2Kind, &'static str) {
+    match stream {
+        0 => {
+            sonar_beam(w, &mission.beams[i]);
+            (Ros2Kind::SonarBeam, TOPIC_BEAM)
+        }
+        1 => {
+            twist(w, &mission.dvl[i]);
+            (Ros2Kind::TwistWithCovarianceStamped, TOPIC_DVL)
+        }
+        2 => {
+            imu(w, &mission.attitude[i]);
+            (Ros2Kind::Imu, TOPIC_IMU)
+        }
+        _ => {
+            pose(w, &mission.ground_truth[i], gt_kind.0);
+            gt_kind
+        }
+    }
 }
 
 /// `header.frame_id` of each stream.

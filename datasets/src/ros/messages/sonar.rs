@@ -78,59 +78,30 @@ pub(super) fn ping360_echo<R: WireReader>(
 const DTYPE_UINT8: u32 = 0;
 const DTYPE_UINT16: u32 = 2;
 
+/// The beams of one `marine_acoustic_msgs/RawSonarImage`: one beam per
+/// `rx_angles` entry, bins of `sound_speed / (2 sample_rate)` metres from
+/// `sample0`, each beam stamped `stamp_s` plus its `tx_delays` entry (when
+/// there is one per beam), uint16 samples scaled to their high byte.
+/// Errors name the field: an unread dtype, no bins, a count of angles or
+/// bytes that does not match the beams, a non-finite or non-positive value.
 pub(super) fn raw_sonar_image<R: WireReader>(
     r: &mut R,
     stamp_s: f64,
 ) -> Result<Vec<SonarBeam>, FieldError> {
-    r.f32("ping_info.frequency")?;
-    let sound_speed = positive(
-        "ping_info.sound_speed",
-        f64::from(r.f32("ping_info.sound_speed")?),
-    )?;
-    r.f32_seq("ping_info.tx_beamwidths")?;
-    r.f32_seq("ping_info.rx_beamwidths")?;
-    let sample_rate = positive("sample_rate", f64::from(r.f32("sample_rate")?))?;
-    let samples = r.u32("samples_per_beam")? as usize;
-    let sample0 = r.u32("sample0")?;
-    let tx_delays = r.f32_seq("tx_delays")?;
-    r.f32_seq("tx_angles")?;
-    let rx_angles = r.f32_seq("rx_angles")?;
-    let big_endian = r.bool("image.is_bigendian")?;
-    let dtype = r.u32("image.dtype")?;
-    let beam_count = r.u32("image.beam_count")? as usize;
-    let data = r.byte_seq("image.data")?;
-    let bytes = match dtype {
-        DTYPE_UINT8 => 1,
-        DTYPE_UINT16 => 2,
-        other => {
-            return Err(FieldError::new(
-                "image.dtype",
-                format!("dtype {other} is not read (uint8 = 0, uint16 = 2)"),
-            ));
-        }
-    };
-    if samples == 0 || beam_count == 0 {
-        return Err(FieldError::new(
-            "samples_per_beam",
-            format!("{samples} samples per beam in {beam_count} beams: no bins"),
-        ));
-    }
-    if rx_angles.len() != beam_count {
-        return Err(FieldError::new(
-            "rx_angles",
-            format!("{} angles for {beam_count} beams", rx_angles.len()),
-        ));
-    }
-    if data.len() != beam_count * samples * bytes {
-        return Err(FieldError::new(
-            "image.data",
-            format!(
-                "{} bytes, but {beam_count} beams x {samples} samples x {bytes} bytes = {}",
-                data.len(),
-                beam_count * samples * bytes
-            ),
-        ));
-    }
+    let image = RawImage::read(r)?;
+    let bytes = image.sample_bytes()?;
+    let RawImage {
+        sound_speed,
+        sample_rate,
+        samples,
+        sample0,
+        tx_delays,
+        rx_angles,
+        big_endian,
+        beam_count,
+        data,
+        ..
+    } = image;
     let bin_size_m = sound_speed / (2.0 * sample_rate);
     let mut beams = Vec::with_capacity(beam_count);
     for (i, row) in data.chunks_exact(samples * bytes).enumerate() {
@@ -141,31 +112,121 @@ pub(super) fn raw_sonar_image<R: WireReader>(
             }
             _ => 0.0,
         };
-        let intensities = match bytes {
-            1 => row.to_vec(),
-            _ => row
-                .chunks_exact(2)
-                .map(|b| {
-                    let v = if big_endian {
-                        u16::from_be_bytes([b[0], b[1]])
-                    } else {
-                        u16::from_le_bytes([b[0], b[1]])
-                    };
-                    (v >> 8) as u8
-                })
-                .collect(),
-        };
         let beam = SonarBeam {
             stamp_s: stamp_s + delay_s,
             angle_rad,
             bin_size_m,
             first_bin_range_m: f64::from(sample0) * bin_size_m,
-            intensities,
+            intensities: eight_bit(row, bytes, big_endian),
         };
         validate::beam(&beam)?;
         beams.push(beam);
     }
     Ok(beams)
+}
+
+/// The fields of a `RawSonarImage` that make its beams, read in wire
+/// order (the others are skipped).
+struct RawImage {
+    /// m/s, positive.
+    sound_speed: f64,
+    /// Hz, positive.
+    sample_rate: f64,
+    samples: usize,
+    sample0: u32,
+    tx_delays: Vec<f32>,
+    rx_angles: Vec<f32>,
+    big_endian: bool,
+    dtype: u32,
+    beam_count: usize,
+    data: Vec<u8>,
+}
+
+impl RawImage {
+    fn read<R: WireReader>(r: &mut R) -> Result<Self, FieldError> {
+        r.f32("ping_info.frequency")?;
+        let sound_speed = positive(
+            "ping_info.sound_speed",
+            f64::from(r.f32("ping_info.sound_speed")?),
+        )?;
+        r.f32_seq("ping_info.tx_beamwidths")?;
+        r.f32_seq("ping_info.rx_beamwidths")?;
+        let sample_rate = positive("sample_rate", f64::from(r.f32("sample_rate")?))?;
+        let samples = r.u32("samples_per_beam")? as usize;
+        let sample0 = r.u32("sample0")?;
+        let tx_delays = r.f32_seq("tx_delays")?;
+        r.f32_seq("tx_angles")?;
+        let rx_angles = r.f32_seq("rx_angles")?;
+        Ok(Self {
+            sound_speed,
+            sample_rate,
+            samples,
+            sample0,
+            tx_delays,
+            rx_angles,
+            big_endian: r.bool("image.is_bigendian")?,
+            dtype: r.u32("image.dtype")?,
+            beam_count: r.u32("image.beam_count")? as usize,
+            data: r.byte_seq("image.data")?,
+        })
+    }
+
+    /// Bytes per sample (1 or 2), after checking that the image has bins
+    /// and that the angles and the data match its beams.
+    fn sample_bytes(&self) -> Result<usize, FieldError> {
+        let (samples, beam_count) = (self.samples, self.beam_count);
+        let bytes = match self.dtype {
+            DTYPE_UINT8 => 1,
+            DTYPE_UINT16 => 2,
+            other => {
+                return Err(FieldError::new(
+                    "image.dtype",
+                    format!("dtype {other} is not read (uint8 = 0, uint16 = 2)"),
+                ));
+            }
+        };
+        if samples == 0 || beam_count == 0 {
+            return Err(FieldError::new(
+                "samples_per_beam",
+                format!("{samples} samples per beam in {beam_count} beams: no bins"),
+            ));
+        }
+        if self.rx_angles.len() != beam_count {
+            return Err(FieldError::new(
+                "rx_angles",
+                format!("{} angles for {beam_count} beams", self.rx_angles.len()),
+            ));
+        }
+        if self.data.len() != beam_count * samples * bytes {
+            return Err(FieldError::new(
+                "image.data",
+                format!(
+                    "{} bytes, but {beam_count} beams x {samples} samples x {bytes} bytes = {}",
+                    self.data.len(),
+                    beam_count * samples * bytes
+                ),
+            ));
+        }
+        Ok(bytes)
+    }
+}
+
+/// One beam's samples as 8-bit intensities: as they are with one byte per
+/// sample, else the high byte of each uint16 (of the given endianness).
+fn eight_bit(row: &[u8], bytes: usize, big_endian: bool) -> Vec<u8> {
+    if bytes == 1 {
+        return row.to_vec();
+    }
+    row.chunks_exact(2)
+        .map(|b| {
+            let v = if big_endian {
+                u16::from_be_bytes([b[0], b[1]])
+            } else {
+                u16::from_le_bytes([b[0], b[1]])
+            };
+            (v >> 8) as u8
+        })
+        .collect()
 }
 
 pub(super) fn laser_scan<R: WireReader>(

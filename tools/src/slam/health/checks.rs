@@ -46,7 +46,7 @@
 //! and the real St Pere data, good and with wrong mountings, with the
 //! command that measures them.
 
-use super::evidence::{LoopEvidence, MapEvidence, SequentialEvidence};
+use super::evidence::{LoopEvidence, MapEvidence, SequentialEvidence, TranslationFit};
 use super::{Check, HealthReason};
 
 /// The 0.9 quantile of χ² with 3 degrees of freedom.
@@ -124,34 +124,42 @@ pub fn sequential(evidence: &SequentialEvidence) -> Vec<HealthReason> {
         ));
     }
     if let Some(fit) = &evidence.translation {
-        let direction_deg = fit.direction_rad().to_degrees();
-        if direction_deg.abs() > MAX_DIRECTION_DEG {
-            out.push(reason(
-                Check::TranslationDirection,
-                direction_deg,
-                MAX_DIRECTION_DEG,
-                format!(
-                    "the sonar sees the vehicle move {direction_deg:.0}° away from the odometry's \
-                     direction (at most ±{MAX_DIRECTION_DEG}°; a head turned by δ from its mounting shows −δ)"
-                ),
-            ));
-        }
-        if let Some((offset_m, error_m)) = fit.head_offset_m()
-            && offset_m > MAX_HEAD_OFFSET_M
-            && offset_m > 3.0 * error_m
-        {
-            out.push(reason(
-                Check::HeadOffset,
-                offset_m,
-                MAX_HEAD_OFFSET_M,
-                format!(
-                    "the turns between rotations place the sonar head {offset_m:.2} ± {error_m:.2} m \
-                     from where the mounting puts it (at most {MAX_HEAD_OFFSET_M} m)"
-                ),
-            ));
-        }
+        out.extend(translation(fit));
     }
     out.extend(acceptance(evidence));
+    out
+}
+
+/// The checks on the translations of the sequential matches against the
+/// odometry's: their direction, and the head offset the turns imply.
+fn translation(fit: &TranslationFit) -> Vec<HealthReason> {
+    let mut out = Vec::new();
+    let direction_deg = fit.direction_rad().to_degrees();
+    if direction_deg.abs() > MAX_DIRECTION_DEG {
+        out.push(reason(
+            Check::TranslationDirection,
+            direction_deg,
+            MAX_DIRECTION_DEG,
+            format!(
+                "the sonar sees the vehicle move {direction_deg:.0}° away from the odometry's \
+                 direction (at most ±{MAX_DIRECTION_DEG}°; a head turned by δ from its mounting shows −δ)"
+            ),
+        ));
+    }
+    if let Some((offset_m, error_m)) = fit.head_offset_m()
+        && offset_m > MAX_HEAD_OFFSET_M
+        && offset_m > 3.0 * error_m
+    {
+        out.push(reason(
+            Check::HeadOffset,
+            offset_m,
+            MAX_HEAD_OFFSET_M,
+            format!(
+                "the turns between rotations place the sonar head {offset_m:.2} ± {error_m:.2} m \
+                 from where the mounting puts it (at most {MAX_HEAD_OFFSET_M} m)"
+            ),
+        ));
+    }
     out
 }
 

@@ -84,36 +84,9 @@ pub fn complete_results_mcap(
     let name = format!("{} (echofield results)", output.mission_name);
     let mut w = MissionWriter::create(path, &name, mounting)?;
 
-    let optimised: Vec<Se2> = output.nodes.iter().map(|n| n.optimised).collect();
-    let dead_reckoning: Vec<Se2> = output.nodes.iter().map(|n| n.dead_reckoning).collect();
-    w.write_poses_in_frame("/slam/trajectory", t0, FRAME_WORLD, &optimised)?;
-    w.write_poses_in_frame(
-        "/dead_reckoning/trajectory",
-        t0,
-        FRAME_WORLD,
-        &dead_reckoning,
-    )?;
-    if let (Some(gt), Some(world_from_gt)) = (&output.ground_truth, world_from_ground_truth) {
-        let poses: Vec<Se2> = gt.iter().map(|(_, p)| world_from_gt.compose(p)).collect();
-        w.write_poses_in_frame("/ground_truth/trajectory", t0, FRAME_WORLD, &poses)?;
-    }
-    for (topic, accepted, thickness_px) in [
-        ("/slam/loops/accepted", true, 2.0),
-        ("/slam/loops/rejected", false, 1.0),
-    ] {
-        let segments = loop_segments(loops, accepted, &optimised);
-        w.write_scene_lines(topic, t0, FRAME_WORLD, topic, thickness_px, &segments)?;
-    }
+    write_trajectories(&mut w, t0, output, loops, world_from_ground_truth)?;
     if let Some(grid) = mosaic.filter(|g| g.width() > 0 && g.height() > 0) {
-        let (x0, y0) = grid.origin_m();
-        let cells: Vec<u8> = grid.values().iter().map(|&v| intensity_level(v)).collect();
-        let cells = GridCells {
-            origin: Se2::new(x0, y0, 0.0),
-            column_count: grid.width(),
-            cell_size_m: grid.cell_size_m(),
-            cells: &cells,
-        };
-        w.write_grid("/slam/mosaic", t0, FRAME_WORLD, &cells)?;
+        write_mosaic(&mut w, t0, grid)?;
     }
     w.write_frame_transform(
         "/tf",
@@ -133,6 +106,18 @@ pub fn complete_results_mcap(
             &encoded[..]
         }
     };
+    write_nodes(&mut w, output, pictures)?;
+    Ok(w.complete()?)
+}
+
+/// The per-node topics, at each node's stamp: its optimised pose (as the
+/// `/tf` world-to-vehicle transform and as a pose), its scan placed by it,
+/// and its picture (`pictures`, one per node).
+fn write_nodes(
+    w: &mut MissionWriter,
+    output: &SlamOutput,
+    pictures: &[Option<Vec<u8>>],
+) -> Result<()> {
     let mut pngs = pictures.iter();
     for (k, node) in output.nodes.iter().enumerate() {
         let t = node.stamp_s;
@@ -155,7 +140,56 @@ pub fn complete_results_mcap(
             w.write_compressed_image("/slam/acoustic_image", t, FRAME_VEHICLE, "png", png)?;
         }
     }
-    Ok(w.complete()?)
+    Ok(())
+}
+
+/// The whole-mission topics at `t0`: the optimised, dead-reckoning and
+/// (placed in the world frame by `world_from_ground_truth`) ground-truth
+/// trajectories, and the accepted and rejected loops as line segments
+/// between optimised poses.
+fn write_trajectories(
+    w: &mut MissionWriter,
+    t0: f64,
+    output: &SlamOutput,
+    loops: &[LoopRow],
+    world_from_ground_truth: Option<Se2>,
+) -> Result<()> {
+    let optimised: Vec<Se2> = output.nodes.iter().map(|n| n.optimised).collect();
+    let dead_reckoning: Vec<Se2> = output.nodes.iter().map(|n| n.dead_reckoning).collect();
+    w.write_poses_in_frame("/slam/trajectory", t0, FRAME_WORLD, &optimised)?;
+    w.write_poses_in_frame(
+        "/dead_reckoning/trajectory",
+        t0,
+        FRAME_WORLD,
+        &dead_reckoning,
+    )?;
+    if let (Some(gt), Some(world_from_gt)) = (&output.ground_truth, world_from_ground_truth) {
+        let poses: Vec<Se2> = gt.iter().map(|(_, p)| world_from_gt.compose(p)).collect();
+        w.write_poses_in_frame("/ground_truth/trajectory", t0, FRAME_WORLD, &poses)?;
+    }
+    for (topic, accepted, thickness_px) in [
+        ("/slam/loops/accepted", true, 2.0),
+        ("/slam/loops/rejected", false, 1.0),
+    ] {
+        let segments = loop_segments(loops, accepted, &optimised);
+        w.write_scene_lines(topic, t0, FRAME_WORLD, topic, thickness_px, &segments)?;
+    }
+    Ok(())
+}
+
+/// `/slam/mosaic` at `t0`: the world-frame mosaic (not empty) as an
+/// occupancy-style grid of intensity levels.
+fn write_mosaic(w: &mut MissionWriter, t0: f64, grid: &Grid) -> Result<()> {
+    let (x0, y0) = grid.origin_m();
+    let cells: Vec<u8> = grid.values().iter().map(|&v| intensity_level(v)).collect();
+    let cells = GridCells {
+        origin: Se2::new(x0, y0, 0.0),
+        column_count: grid.width(),
+        cell_size_m: grid.cell_size_m(),
+        cells: &cells,
+    };
+    w.write_grid("/slam/mosaic", t0, FRAME_WORLD, &cells)?;
+    Ok(())
 }
 
 /// Every node's picture ([`image_png`]; `None`: no image), in parallel;

@@ -341,18 +341,22 @@ impl RowParser<'_> {
         })
     }
 
-    fn row(&self) -> Result<LoopRow> {
-        let triple = |names: [&str; 3]| -> Result<Option<[f64; 3]>> {
-            let v = [
-                self.number(names[0])?,
-                self.number(names[1])?,
-                self.number(names[2])?,
-            ];
-            Ok(match v {
-                [Some(a), Some(b), Some(c)] => Some([a, b, c]),
-                _ => None,
-            })
-        };
+    /// The three numbers of `names`, `None` unless all three are given.
+    fn triple(&self, names: [&str; 3]) -> Result<Option<[f64; 3]>> {
+        let v = [
+            self.number(names[0])?,
+            self.number(names[1])?,
+            self.number(names[2])?,
+        ];
+        Ok(match v {
+            [Some(a), Some(b), Some(c)] => Some([a, b, c]),
+            _ => None,
+        })
+    }
+
+    /// The upper triangle of the covariance (`cov_xx` ... `cov_tt`), `None`
+    /// unless all six are given.
+    fn covariance(&self) -> Result<Option<[f64; 6]>> {
         let cov_names = ["cov_xx", "cov_xy", "cov_xt", "cov_yy", "cov_yt", "cov_tt"];
         let mut cov = [0.0; 6];
         let mut has_cov = true;
@@ -362,6 +366,13 @@ impl RowParser<'_> {
                 None => has_cov = false,
             }
         }
+        Ok(has_cov.then_some(cov))
+    }
+
+    /// The row of the current line; errors name the line and column. A
+    /// `verdict` column, when present, must agree with its inputs.
+    fn row(&self) -> Result<LoopRow> {
+        let covariance = self.covariance()?;
         let row = LoopRow {
             from: self.required("from", self.parse("from", "a node id")?)?,
             to: self.required("to", self.parse("to", "a node id")?)?,
@@ -369,13 +380,13 @@ impl RowParser<'_> {
             densified: self.parse("densified", "true or false")?,
             predicted_overlap: self.number("predicted_overlap")?,
             matched: self.parse("matched", "true or false")?.unwrap_or(false),
-            pose: triple(["x_m", "y_m", "theta_rad"])?,
+            pose: self.triple(["x_m", "y_m", "theta_rad"])?,
             score: self.number("score")?,
             mean_intensity: self.number("mean_intensity")?,
             inside_fraction: self.number("inside_fraction")?,
             points: self.parse("points", "a count")?,
             surface_fit_residual: self.number("surface_fit_residual")?,
-            covariance: has_cov.then_some(cov),
+            covariance,
             partial: self.parse("partial", "true or false")?,
             reverse_translation_m: self.number("reverse_translation_m")?,
             reverse_rotation_deg: self.number("reverse_rotation_deg")?,
@@ -389,7 +400,6 @@ impl RowParser<'_> {
             prior_sigma_xy_m: self.number("prior_sigma_xy_m")?,
             prior_sigma_theta_deg: self.number("prior_sigma_theta_deg")?,
         };
-        // A verdict column, when present, must agree with its inputs.
         if let Some(v) = (self.get)("verdict")
             && Some(v) != row.verdict()
         {

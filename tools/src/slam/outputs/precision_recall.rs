@@ -143,6 +143,33 @@ pub fn sweep(rows: &[LoopRow], metric: &GateMetric) -> PrSweep {
         Direction::AtLeast => b.0.total_cmp(&a.0),
         Direction::AtMost => a.0.total_cmp(&b.0),
     });
+    let points = pr_points(&scored, positives);
+    let best = (positives > 0)
+        .then(|| {
+            points
+                .iter()
+                .enumerate()
+                .fold(None::<(usize, f64)>, |best, (i, p)| match best {
+                    Some((_, f)) if f >= p.f1 => best,
+                    _ => Some((i, p.f1)),
+                })
+                .map(|(i, _)| i)
+        })
+        .flatten();
+    PrSweep {
+        metric: metric.name,
+        direction: metric.direction,
+        candidates: judged.len(),
+        positives,
+        points,
+        best,
+    }
+}
+
+/// One point per distinct value of `scored` (strictest first), counting
+/// every row up to and including that value as accepted; `positives` is the
+/// number of correct candidates, with or without a value.
+fn pr_points(scored: &[(f64, bool)], positives: usize) -> Vec<PrPoint> {
     let mut points = Vec::new();
     let (mut tp, mut fp) = (0usize, 0usize);
     for (i, &(value, correct)) in scored.iter().enumerate() {
@@ -177,26 +204,7 @@ pub fn sweep(rows: &[LoopRow], metric: &GateMetric) -> PrSweep {
             f1,
         });
     }
-    let best = (positives > 0)
-        .then(|| {
-            points
-                .iter()
-                .enumerate()
-                .fold(None::<(usize, f64)>, |best, (i, p)| match best {
-                    Some((_, f)) if f >= p.f1 => best,
-                    _ => Some((i, p.f1)),
-                })
-                .map(|(i, _)| i)
-        })
-        .flatten();
-    PrSweep {
-        metric: metric.name,
-        direction: metric.direction,
-        candidates: judged.len(),
-        positives,
-        points,
-        best,
-    }
+    points
 }
 
 /// Sweeps every metric of [`METRICS`]; an error when no row has a

@@ -1,16 +1,19 @@
 //! The output of a finished run and its [`Report`].
 
 use super::super::SlamEngine;
+use crate::slam::estimate::Estimate;
 use crate::slam::evaluation::evaluate;
+use crate::slam::loops::LoopCloser;
 use crate::slam::node_record::NodeRecord;
+use crate::slam::odometry_scale::OdometryScale;
 use crate::slam::result::{
-    DEAD_RECKONING_RATE_HZ, DeadReckoningReport, OutliersReport, Report, SkippedRotation,
-    SlamOutput, SolverReport, StageTimings, TimeGap,
+    DEAD_RECKONING_RATE_HZ, DeadReckoningReport, IntensityReport, OutliersReport, Report,
+    SkippedRotation, SlamOutput, SolverReport, StageTimings, TimeGap,
 };
-use crate::slam::{SlamError, health, input_checks, navigation_rate, odometry_scale};
+use crate::slam::{SlamConfig, SlamError, health, input_checks, navigation_rate, odometry_scale};
 use echofield_backend::RobustSolveSummary;
 use echofield_frontend::dead_reckoning::{DeadReckoningConfig, Navigation};
-use echofield_frontend::loops::{RejectReason, SequentialRecord};
+use echofield_frontend::loops::{LoopRecord, RejectReason, SequentialRecord};
 use echofield_frontend::nodes::NodeData;
 use echofield_frontend::sensors::{
     AngleDirection, GroundTruthPose, MountingSource, SensorMounting,
@@ -24,9 +27,10 @@ use std::time::Instant;
 /// periods is reported.
 const NODE_GAP_PERIODS: f64 = 3.0;
 
-impl SlamEngine<'_> {
+impl<'c> SlamEngine<'c> {
     /// The output of the run after the final solve (`graph`, `summary`,
     /// which took `final_solve_s`), with the warnings of the finish.
+    /// Errors when the navigation cannot be finished.
     pub(super) fn output(
         self,
         graph: PoseGraph,
@@ -35,126 +39,220 @@ impl SlamEngine<'_> {
         finish_warnings: Warnings,
         ground_truth: &[GroundTruthPose],
     ) -> Result<SlamOutput, SlamError> {
-        let mut warnings = self.input_warnings(&summary, finish_warnings);
-        let navigation = self.navigation.finish()?;
-        let config = self.config;
-        let graph_state = self.graph;
-        let nodes = graph_state.nodes;
-        let mut records = node_records(&nodes, &graph);
-        let time_gaps = time_gaps(&navigation, &nodes, &mut warnings);
-        yaw_rate_warning(&navigation, &config.dead_reckoning, &mut warnings);
-        let odometry_scale = odometry_scale::odometry_scale(&graph);
-        warnings.extend(
-            odometry_scale
-                .as_ref()
-                .and_then(odometry_scale::warning)
-                .map(|m| Warning::new(WarningKind::OdometryScale, 1, m)),
-        );
-        let mut closer = graph_state.closer;
-        let mut loops = std::mem::take(&mut closer.records);
-        let sequential = graph_state.sequential;
-        let estimate = graph_state.estimate;
-        let timings = StageTimings {
-            matching_s: graph_state.sequential_s
-                + (graph_state.loops_s - estimate.incremental_time_s - closer.validation_time_s)
-                    .max(0.0),
-            loop_validation_s: closer.validation_time_s,
-            optimisation_s: final_solve_s + estimate.incremental_time_s,
-            ..self.timings
-        };
-        let mut report = Report {
-            run: None,
-            mission: self.mission_name.clone(),
-            echofield_version: env!("CARGO_PKG_VERSION").to_string(),
-            rotations: self.rotation_ranges.len(),
-            nodes: nodes.len(),
-            skipped_rotations: self.skipped,
-            nodes_with_scan: nodes.iter().filter(|n| n.has_scan()).count(),
-            sequential_matches: sequential.len(),
-            sequential_accepted: sequential.iter().filter(|s| s.accepted).count(),
-            loop_candidates: loops.len(),
-            loop_matches: loops
-                .iter()
-                .filter(|l| l.rejected_by != Some(RejectReason::Deferred))
-                .count(),
-            loop_wide_searches: closer.wide_searches,
-            matches_run: closer.matches + sequential_matches_run(&sequential),
-            images_rebuilt: nodes.iter().map(|n| n.image.rebuilds()).sum(),
-            loops_accepted: loops.iter().filter(|l| l.accepted).count(),
-            loop_densified_candidates: loops.iter().filter(|l| l.densified).count(),
-            loops_densified: loops.iter().filter(|l| l.densified && l.accepted).count(),
-            loop_rejections: rejections(&loops),
-            edges: edge_counts(&graph),
-            time_s: 0.0,
-            timings,
-            solver: SolverReport {
-                summary: summary.least_squares.clone(),
-                outliers: OutliersReport::from(&summary),
-                incremental_solves: estimate.incremental_solves,
-                incremental_symbolic_reused: estimate.incremental_symbolic_reused,
-                incremental_time_s: estimate.incremental_time_s,
-            },
-            time_gaps,
-            dead_reckoning: DeadReckoningReport {
-                dvl_gated: navigation.dvl_gated(),
-                yaw_rate_noise_radps: navigation.yaw_rate_noise_radps(),
-                yaw_rate_check: navigation.yaw_rate_check().copied(),
-                odometry_scale,
-            },
-            mounting: self.mounting.clone(),
-            intensity: self.input.intensity.clone(),
-            health: health::assess(&nodes, &records, &sequential, &loops, &self.mounting),
-            warnings,
-            ate_rmse_m: None,
-            ate_rmse_dead_reckoning_m: None,
-            ate: None,
-            ate_dead_reckoning: None,
-            ate_navigation_rate: None,
-            distance_travelled_m: None,
-            rpe: None,
-            rpe_dead_reckoning: None,
-            loop_precision: None,
-            loop_recall: None,
-            loop_recall_revisits: None,
-            loop_evaluation: None,
-            online: None,
-            definitions: BTreeMap::new(),
-        };
-        let t = Instant::now();
-        evaluate(
+        let (started, config) = (self.started, self.config);
+        let (mut run, extras) = self.finished(graph, summary, final_solve_s, finish_warnings)?;
+        let mut report = unevaluated_report(&run, extras);
+        let dead_reckoning = evaluate_run(
             ground_truth,
-            &nodes,
-            &mut records,
-            &mut loops,
+            &run.nodes,
+            &mut run.records,
+            &mut run.loops,
             config,
+            &run.navigation,
             &mut report,
         );
-        let dead_reckoning = dense_dead_reckoning(&navigation);
-        let dense = navigation_rate::trajectory(&records, &dead_reckoning);
-        navigation_rate::evaluate(ground_truth, &records, &dense, &mut report);
-        report.timings.evaluation_s = t.elapsed().as_secs_f64();
-        report.time_s = self.started.elapsed().as_secs_f64();
+        report.time_s = started.elapsed().as_secs_f64();
         let ground_truth = (!ground_truth.is_empty()).then(|| {
-            records
+            run.records
                 .iter()
                 .filter_map(|n| n.ground_truth.map(|g| (n.stamp_s, g)))
                 .collect()
         });
-        let (scans, images) = nodes.into_iter().map(|n| (n.scan, n.image)).unzip();
+        let (scans, images) = run.nodes.into_iter().map(|n| (n.scan, n.image)).unzip();
         Ok(SlamOutput {
-            mission_name: self.mission_name,
+            mission_name: run.mission_name,
             config: config.clone(),
-            nodes: records,
-            graph,
+            nodes: run.records,
+            graph: run.graph,
             dead_reckoning,
             ground_truth,
-            loops,
-            sequential,
+            loops: run.loops,
+            sequential: run.sequential,
             report,
             scans,
             images,
             image_config: config.image.clone(),
         })
+    }
+
+    /// The engine taken apart after the final solve: the finished run and
+    /// what its report takes over (warnings of the input, of the finish and
+    /// of the final graph; stage timings; time gaps).
+    fn finished(
+        self,
+        graph: PoseGraph,
+        summary: RobustSolveSummary,
+        final_solve_s: f64,
+        finish_warnings: Warnings,
+    ) -> Result<(Finished<'c>, ReportExtras), SlamError> {
+        let mut warnings = self.input_warnings(&summary, finish_warnings);
+        let navigation = self.navigation.finish()?;
+        let graph_state = self.graph;
+        let records = node_records(&graph_state.nodes, &graph);
+        let time_gaps = time_gaps(&navigation, &graph_state.nodes, &mut warnings);
+        yaw_rate_warning(&navigation, &self.config.dead_reckoning, &mut warnings);
+        let odometry_scale = odometry_scale_checked(&graph, &mut warnings);
+        let mut closer = graph_state.closer;
+        let loops = std::mem::take(&mut closer.records);
+        let estimate = graph_state.estimate;
+        let matching_s = graph_state.sequential_s
+            + (graph_state.loops_s - estimate.incremental_time_s - closer.validation_time_s)
+                .max(0.0);
+        let timings = StageTimings {
+            matching_s,
+            loop_validation_s: closer.validation_time_s,
+            optimisation_s: final_solve_s + estimate.incremental_time_s,
+            ..self.timings
+        };
+        let extras = ReportExtras {
+            skipped: self.skipped,
+            timings,
+            time_gaps,
+            odometry_scale,
+            warnings,
+        };
+        let run = Finished {
+            mission_name: self.mission_name,
+            rotations: self.rotation_ranges.len(),
+            mounting: self.mounting,
+            intensity: self.input.intensity,
+            nodes: graph_state.nodes,
+            records,
+            sequential: graph_state.sequential,
+            loops,
+            closer,
+            estimate,
+            graph,
+            summary,
+            navigation,
+        };
+        Ok((run, extras))
+    }
+}
+
+/// The odometry scale of the final graph ([`odometry_scale`]), with its
+/// warning when it is off.
+fn odometry_scale_checked(graph: &PoseGraph, warnings: &mut Warnings) -> Option<OdometryScale> {
+    let scale = odometry_scale::odometry_scale(graph);
+    warnings.extend(
+        scale
+            .as_ref()
+            .and_then(odometry_scale::warning)
+            .map(|m| Warning::new(WarningKind::OdometryScale, 1, m)),
+    );
+    scale
+}
+
+/// The evaluation against `ground_truth` (nothing without it) into
+/// `report`, `records` and `loops`, timed; returns the dense dead-reckoning
+/// trajectory (at [`DEAD_RECKONING_RATE_HZ`]) it compares too.
+fn evaluate_run(
+    ground_truth: &[GroundTruthPose],
+    nodes: &[NodeData],
+    records: &mut [NodeRecord],
+    loops: &mut [LoopRecord],
+    config: &SlamConfig,
+    navigation: &Navigation,
+    report: &mut Report,
+) -> Vec<(f64, Se2)> {
+    let t = Instant::now();
+    evaluate(ground_truth, nodes, records, loops, config, report);
+    let dead_reckoning = dense_dead_reckoning(navigation);
+    let dense = navigation_rate::trajectory(records, &dead_reckoning);
+    navigation_rate::evaluate(ground_truth, records, &dense, report);
+    report.timings.evaluation_s = t.elapsed().as_secs_f64();
+    dead_reckoning
+}
+
+/// The finished run: the engine's mission, the nodes and their records,
+/// the matches, the final graph and solve, the navigation.
+struct Finished<'c> {
+    mission_name: String,
+    rotations: usize,
+    mounting: SensorMounting,
+    intensity: IntensityReport,
+    nodes: Vec<NodeData>,
+    records: Vec<NodeRecord>,
+    sequential: Vec<SequentialRecord>,
+    loops: Vec<LoopRecord>,
+    closer: LoopCloser<'c>,
+    estimate: Estimate,
+    graph: PoseGraph,
+    summary: RobustSolveSummary,
+    navigation: Navigation,
+}
+
+/// What the report takes over from the finish.
+struct ReportExtras {
+    skipped: Vec<SkippedRotation>,
+    timings: StageTimings,
+    time_gaps: Vec<TimeGap>,
+    odometry_scale: Option<OdometryScale>,
+    warnings: Warnings,
+}
+
+/// The report before the evaluation against ground truth: every field the
+/// run itself gives, the evaluation's fields `None`, `time_s` 0 (set when
+/// the output is complete). One field per line: a struct literal.
+fn unevaluated_report(run: &Finished, extras: ReportExtras) -> Report {
+    let (loops, sequential, navigation) = (&run.loops, &run.sequential, &run.navigation);
+    Report {
+        run: None,
+        mission: run.mission_name.clone(),
+        echofield_version: env!("CARGO_PKG_VERSION").to_string(),
+        rotations: run.rotations,
+        nodes: run.nodes.len(),
+        skipped_rotations: extras.skipped,
+        nodes_with_scan: run.nodes.iter().filter(|n| n.has_scan()).count(),
+        sequential_matches: sequential.len(),
+        sequential_accepted: sequential.iter().filter(|s| s.accepted).count(),
+        loop_candidates: loops.len(),
+        loop_matches: loops
+            .iter()
+            .filter(|l| l.rejected_by != Some(RejectReason::Deferred))
+            .count(),
+        loop_wide_searches: run.closer.wide_searches,
+        matches_run: run.closer.matches + sequential_matches_run(sequential),
+        images_rebuilt: run.nodes.iter().map(|n| n.image.rebuilds()).sum(),
+        loops_accepted: loops.iter().filter(|l| l.accepted).count(),
+        loop_densified_candidates: loops.iter().filter(|l| l.densified).count(),
+        loops_densified: loops.iter().filter(|l| l.densified && l.accepted).count(),
+        loop_rejections: rejections(loops),
+        edges: edge_counts(&run.graph),
+        time_s: 0.0,
+        timings: extras.timings,
+        solver: SolverReport {
+            summary: run.summary.least_squares.clone(),
+            outliers: OutliersReport::from(&run.summary),
+            incremental_solves: run.estimate.incremental_solves,
+            incremental_symbolic_reused: run.estimate.incremental_symbolic_reused,
+            incremental_time_s: run.estimate.incremental_time_s,
+        },
+        time_gaps: extras.time_gaps,
+        dead_reckoning: DeadReckoningReport {
+            dvl_gated: navigation.dvl_gated(),
+            yaw_rate_noise_radps: navigation.yaw_rate_noise_radps(),
+            yaw_rate_check: navigation.yaw_rate_check().copied(),
+            odometry_scale: extras.odometry_scale,
+        },
+        mounting: run.mounting.clone(),
+        intensity: run.intensity.clone(),
+        health: health::assess(&run.nodes, &run.records, sequential, loops, &run.mounting),
+        warnings: extras.warnings,
+        ate_rmse_m: None,
+        ate_rmse_dead_reckoning_m: None,
+        ate: None,
+        ate_dead_reckoning: None,
+        ate_navigation_rate: None,
+        distance_travelled_m: None,
+        rpe: None,
+        rpe_dead_reckoning: None,
+        loop_precision: None,
+        loop_recall: None,
+        loop_recall_revisits: None,
+        loop_evaluation: None,
+        online: None,
+        definitions: BTreeMap::new(),
     }
 }
 
@@ -322,7 +420,7 @@ fn time_gaps(navigation: &Navigation, nodes: &[NodeData], warnings: &mut Warning
     gaps
 }
 
-fn rejections(loops: &[echofield_frontend::loops::LoopRecord]) -> BTreeMap<RejectReason, usize> {
+fn rejections(loops: &[LoopRecord]) -> BTreeMap<RejectReason, usize> {
     let mut out = BTreeMap::new();
     for reason in loops.iter().filter_map(|l| l.rejected_by) {
         *out.entry(reason).or_insert(0) += 1;
