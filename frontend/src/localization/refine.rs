@@ -151,17 +151,18 @@ mod tests {
     use super::*;
     use crate::image::Grid;
 
-    /// A field of two crossing walls (x = 2 and y = 3) and a post, and the
-    /// same points in the vehicle frame of `world_from_vehicle`.
+    /// A field of two crossing walls (x = 2.125 and y = 3.125) and a post,
+    /// every point at a cell's centre (where the bilinear field peaks), and
+    /// the same points in the vehicle frame of `world_from_vehicle`.
     fn field_and_scan(world_from_vehicle: &Se2) -> (LikelihoodField, Vec<Point2<f64>>) {
         let mut grid = Grid::zeros(-10.0, -10.0, 0.25, 80, 80);
         let mut world = Vec::new();
         for i in 0..60 {
-            let t = -7.5 + 0.25 * i as f64;
-            world.push((2.0, t));
-            world.push((t, 3.0));
+            let t = -7.375 + 0.25 * i as f64;
+            world.push((2.125, t));
+            world.push((t, 3.125));
         }
-        world.push((-4.0, -4.0));
+        world.push((-3.875, -3.875));
         let w = grid.width();
         for &(x, y) in &world {
             let (ix, iy) = grid.cell_of(x, y);
@@ -219,12 +220,12 @@ mod tests {
             heading_sigma_rad: 0.26,
             max_shift_m: 0.2,
         };
-        let start = Se2::new(0.8, 0.0, 0.0);
+        let start = Se2::new(0.5, 0.0, 0.0);
         let refined = problem.refine(&start);
         let shift = (refined.translation() - start.translation()).norm();
         assert!(shift <= 0.2 + 1e-9, "moved {shift} m");
-        // It moved towards the truth, as far as it was allowed.
-        assert!(refined.x() < 0.7, "{refined:?}");
+        // It moved towards the truth.
+        assert!(refined.x() < 0.45, "{refined:?}");
     }
 
     #[test]
