@@ -23,6 +23,7 @@
 pub mod field;
 pub mod filter;
 pub mod particles;
+pub mod refine;
 
 pub use field::LikelihoodField;
 pub use filter::{LocalizationState, LocalizationStep, MonteCarloLocalizer};
@@ -71,6 +72,8 @@ pub struct LocalizationConfig {
     /// Gaussian smoothing of the likelihood field, m (widens the basin of
     /// the score against the particles' spacing and the map's errors).
     pub field_smoothing_m: f64,
+    /// How the map's node images combine where they overlap in the field.
+    pub field_blend: FieldBlend,
     /// Field value of a scan point that falls where the map's sonar never
     /// looked (neither evidence for nor against a pose), 0-1.
     pub unknown_value: f64,
@@ -97,6 +100,36 @@ pub struct LocalizationConfig {
     /// after which the vehicle counts as lost (kidnapped) and the particles
     /// are spread over the whole map again.
     pub lost_after_rotations: usize,
+    /// What the per-rotation estimate is: the particles' weighted mean, or
+    /// that mean refined to the nearest peak of the scan's score on the
+    /// map ([`refine`]) when the scan sees the map.
+    pub estimate: Estimate,
+    /// Largest distance of the refined estimate from the weighted mean, m.
+    pub refine_max_shift_m: f64,
+}
+
+/// [`LocalizationConfig::field_blend`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FieldBlend {
+    /// The strongest echo any node saw in the cell.
+    Max,
+    /// The mean over the nodes that saw an echo in the cell.
+    Mean,
+}
+
+/// [`LocalizationConfig::estimate`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Estimate {
+    /// The particles' weighted mean (the posterior mean).
+    Mean,
+    /// The particle of the largest weight.
+    BestParticle,
+    /// The weighted mean moved to the nearest peak of the scan's score on
+    /// the map (plus the compass term), within `refine_max_shift_m`; the
+    /// mean itself when the scan sees too little of the map.
+    Refined,
 }
 
 impl Default for LocalizationConfig {
@@ -114,6 +147,7 @@ impl Default for LocalizationConfig {
             max_scan_points: 1000,
             field_cell_m: 0.25,
             field_smoothing_m: 0.15,
+            field_blend: FieldBlend::Max,
             unknown_value: 0.1,
             motion_noise_scale: 1.0,
             motion_noise_floor_m: 0.03,
@@ -122,6 +156,8 @@ impl Default for LocalizationConfig {
             min_fit: 0.65,
             min_coverage: 0.3,
             lost_after_rotations: 3,
+            estimate: Estimate::Refined,
+            refine_max_shift_m: 0.5,
         }
     }
 }
@@ -180,6 +216,7 @@ impl LocalizationConfig {
         if self.lost_after_rotations == 0 {
             return Err(FrontendError::config("lost_after_rotations", "must be > 0"));
         }
+        check_positive("refine_max_shift_m", self.refine_max_shift_m)?;
         Ok(())
     }
 }

@@ -19,7 +19,9 @@ use echofield::matching::ground_truth_at;
 use echofield::slam::{NoProgress, SlamConfig, run_mission};
 use echofield_frontend::localization::{LocalizationConfig, LocalizationState};
 use echofield_frontend::sensors::SweepTiming;
+use echofield_graph::Se2;
 use echofield_tests::{prior_map_of_run, split_mission_at, stpere_point_set_mission};
+use nalgebra::Vector2;
 
 #[test]
 fn the_second_half_of_real_st_pere_localises_on_the_first_halfs_map() {
@@ -53,30 +55,31 @@ fn the_second_half_of_real_st_pere_localises_on_the_first_halfs_map() {
         .position(|r| r.step.state == LocalizationState::Localised)
         .expect("the filter localises at some rotation");
     // (estimate in the map frame, DGPS) of every rotation from the
-    // convergence on that the DGPS covers.
-    let pairs: Vec<_> = rotations[converged..]
-        .iter()
-        .filter_map(|r| {
-            let truth = ground_truth_at(&localized.ground_truth, r.stamp_s)?;
-            Some((r.step.estimate.translation(), truth.translation()))
-        })
-        .collect();
-    assert!(pairs.len() >= 40, "{} rotations with DGPS", pairs.len());
-    let rmse = |dgps_from_estimate: &echofield_graph::Se2| {
-        let sum: f64 = pairs
+    // convergence on that the DGPS covers: the estimate (refined on the
+    // map by default) and the particles' weighted mean.
+    let pairs = |mean: bool| -> Vec<_> {
+        rotations[converged..]
             .iter()
-            .map(|(e, t)| {
-                let (x, y) = dgps_from_estimate.transform_xy(e.x, e.y);
-                (t.x - x).hypot(t.y - y).powi(2)
+            .filter_map(|r| {
+                let truth = ground_truth_at(&localized.ground_truth, r.stamp_s)?;
+                let e = if mean { r.step.mean } else { r.step.estimate };
+                Some((e.translation(), truth.translation()))
             })
-            .sum();
-        (sum / pairs.len() as f64).sqrt()
+            .collect()
     };
     // Through the map's fit, and as an ATE is usually given (the
     // estimates themselves fitted onto the DGPS, as the dead reckoning is).
-    let ate = rmse(&dgps_from_map);
-    let (e, t): (Vec<_>, Vec<_>) = pairs.iter().copied().unzip();
-    let ate_fitted = rmse(&align_se2(&e, &t));
+    let ates = |mean: bool| {
+        let pairs = pairs(mean);
+        assert!(pairs.len() >= 40, "{} rotations with DGPS", pairs.len());
+        let (e, t): (Vec<_>, Vec<_>) = pairs.iter().copied().unzip();
+        (
+            rmse(&pairs, &dgps_from_map),
+            rmse(&pairs, &align_se2(&e, &t)),
+        )
+    };
+    let (ate, ate_fitted) = ates(false);
+    let (mean_ate, mean_ate_fitted) = ates(true);
     let report = build_report(&localized, &map, "map", &localize_config, None);
     let dead_reckoning = report.ate_rmse_dead_reckoning_m.unwrap();
     let kept = rotations[converged..]
@@ -91,7 +94,8 @@ fn the_second_half_of_real_st_pere_localises_on_the_first_halfs_map() {
     eprintln!(
         "real St Pere 61-115 on the map of 1-60: converged at rotation {converged}, \
          ATE {ate:.3} m through the map's DGPS fit, {ate_fitted:.3} m fitted, dead reckoning {dead_reckoning:.3} m, \
-         {kept} of {} rotations localised or coasting, {} far from the map",
+         {kept} of {} rotations localised or coasting, {} far from the map; \
+         the particles' mean {mean_ate:.3} m through the map's fit, {mean_ate_fitted:.3} m fitted",
         rotations.len() - converged,
         report.rotations_far_from_map
     );
@@ -107,9 +111,30 @@ fn the_second_half_of_real_st_pere_localises_on_the_first_halfs_map() {
     );
     assert!(ate < 1.5, "ATE {ate} m");
     assert!(ate_fitted <= 1.0, "fitted ATE {ate_fitted} m");
+    // The refined estimate (the default) does not undo what the particles'
+    // mean achieves on real data: within 5 cm of it either way of
+    // measuring (EXPERIMENTS.md gives both).
+    assert!(ate <= mean_ate + 0.05, "{ate} m vs the mean's {mean_ate} m");
+    assert!(
+        ate_fitted <= mean_ate_fitted + 0.05,
+        "{ate_fitted} m vs the mean's {mean_ate_fitted} m"
+    );
     assert!(
         kept as f64 >= 0.9 * (rotations.len() - converged) as f64,
         "{kept} localised or coasting"
     );
     assert!(report.rotations_far_from_map > 0);
+}
+
+/// RMS distance between the DGPS and the estimates of `pairs` (estimate in
+/// the map frame, DGPS) moved by `dgps_from_estimate`, m.
+fn rmse(pairs: &[(Vector2<f64>, Vector2<f64>)], dgps_from_estimate: &Se2) -> f64 {
+    let sum: f64 = pairs
+        .iter()
+        .map(|(e, t)| {
+            let (x, y) = dgps_from_estimate.transform_xy(e.x, e.y);
+            (t.x - x).hypot(t.y - y).powi(2)
+        })
+        .sum();
+    (sum / pairs.len() as f64).sqrt()
 }

@@ -1,8 +1,9 @@
 //! `echofield localize`: Monte Carlo localisation of a mission on the
 //! acoustic map of an earlier run (issue 38).
 //!
-//! 1. [`map`]: the prior map rebuilt from the run's output folder (its
-//!    mission, config and optimised poses) as one likelihood field.
+//! 1. [`run_folder`] and [`map`]: the prior map rebuilt from the run's
+//!    output folder (its mission, config and optimised poses) as one
+//!    likelihood field.
 //! 2. [`replay`]: the mission replayed causally; per rotation the particle
 //!    filter ([`echofield_frontend::localization`]) moves by the forward
 //!    dead reckoning and weighs the rotation's scan on the field (eq. 5).
@@ -24,10 +25,12 @@ pub mod map;
 pub mod outputs;
 pub mod replay;
 pub mod report;
+pub mod run_folder;
 
-pub use map::{PriorMap, build_prior_map, load_prior_map};
+pub use map::{PriorMap, build_prior_map};
 pub use replay::{Localized, localize_mission};
 pub use report::{LocalizeReport, build_report};
+pub use run_folder::load_prior_map;
 
 use anyhow::{Context, Result};
 use echofield_frontend::localization::{LocalizationConfig, MonteCarloLocalizer};

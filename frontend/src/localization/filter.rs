@@ -12,9 +12,10 @@
 //!    of points scored ([`LikelihoodField::score`]), and `σ_θ` is
 //!    `global_heading_sigma_rad` (the map's frame is the compass's, up to
 //!    the heading units' biases).
-//! 3. **Judge**: the weighted mean is the estimate; the scan's fit and
-//!    coverage at it and the cloud's spread set the state
-//!    ([`LocalizationState`]).
+//! 3. **Judge**: the scan's fit and coverage at the weighted mean and the
+//!    cloud's spread set the state ([`LocalizationState`]); the estimate is
+//!    the weighted mean, by default refined to the nearest peak of the
+//!    scan's score on the map when localised ([`super::refine`]).
 //! 4. **Resample** by KLD sampling ([`super::particles::kld_resample`]);
 //!    when the scans have stopped fitting a converged cloud for
 //!    `lost_after_rotations` rotations, the particles are spread over the
@@ -24,9 +25,10 @@
 //! ([`MonteCarloLocalizer::step`] seeds them), or at a known pose
 //! ([`MonteCarloLocalizer::start_at`]).
 
-use super::LocalizationConfig;
 use super::field::LikelihoodField;
 use super::particles::{Belief, KldBounds, Particle, belief, kld_resample, set_weights};
+use super::refine::RefineProblem;
+use super::{Estimate, LocalizationConfig};
 use crate::error::FrontendError;
 use echofield_graph::{Se2, wrap_angle};
 use nalgebra::{Matrix3, Point2, Vector3};
@@ -74,9 +76,11 @@ impl LocalizationState {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LocalizationStep {
     pub state: LocalizationState,
-    /// Weighted mean of the particles, `world_from_vehicle` in the map's
-    /// world frame.
+    /// The estimate ([`LocalizationConfig::estimate`]),
+    /// `world_from_vehicle` in the map's world frame.
     pub estimate: Se2,
+    /// Weighted mean of the particles (map frame).
+    pub mean: Se2,
     /// Square root of the trace of the particles' position covariance, m.
     pub spread_m: f64,
     /// Circular standard deviation of the particles' heading, rad.
@@ -84,10 +88,11 @@ pub struct LocalizationStep {
     /// Particles weighed in this rotation.
     pub particles: usize,
     /// Mean field value of the scan points inside the map's coverage at
-    /// the estimate (0-1; 0 without a scan).
+    /// the weighted mean (0-1; 0 without a scan): what the state is judged
+    /// on.
     pub fit: f64,
     /// Fraction of the scan points inside the map's coverage at the
-    /// estimate.
+    /// weighted mean.
     pub coverage: f64,
     /// Scan points scored per particle.
     pub scan_points: usize,
@@ -235,10 +240,12 @@ impl MonteCarloLocalizer {
         }
         let weighed = self.particles.len();
         let b = belief(&self.particles);
-        let at_estimate = self
+        let at_mean = self
             .field
             .score(&b.mean, points, stride, self.config.unknown_value);
-        let lost = self.judge(&b, scored, at_estimate.fit, at_estimate.coverage);
+        let lost = self.judge(&b, scored, at_mean.fit, at_mean.coverage);
+        let sees_map = scored && at_mean.coverage >= self.config.min_coverage;
+        let estimate = self.estimate(&b, sees_map, heading_rad, points, stride);
         if lost {
             self.seed_global(heading_rad);
             reseeded = true;
@@ -249,12 +256,13 @@ impl MonteCarloLocalizer {
         }
         LocalizationStep {
             state: self.state,
-            estimate: b.mean,
+            estimate,
+            mean: b.mean,
             spread_m: b.spread_m,
             heading_spread_rad: b.heading_spread_rad,
             particles: weighed,
-            fit: if scored { at_estimate.fit } else { 0.0 },
-            coverage: if scored { at_estimate.coverage } else { 0.0 },
+            fit: if scored { at_mean.fit } else { 0.0 },
+            coverage: if scored { at_mean.coverage } else { 0.0 },
             scan_points: if scored {
                 points.len().div_ceil(stride)
             } else {
@@ -278,6 +286,41 @@ impl MonteCarloLocalizer {
             })
             .collect();
         set_weights(&mut self.particles, &log_weights);
+    }
+
+    /// The step's estimate ([`LocalizationConfig::estimate`]) from the
+    /// weighed particles and their belief `b`: refined only when the
+    /// filter believes it is localised and the scan sees the map
+    /// (`sees_map`), else the weighted mean.
+    fn estimate(
+        &self,
+        b: &Belief,
+        sees_map: bool,
+        heading_rad: f64,
+        points: &[Point2<f64>],
+        stride: usize,
+    ) -> Se2 {
+        let c = &self.config;
+        match c.estimate {
+            Estimate::Mean => b.mean,
+            Estimate::BestParticle => self
+                .particles
+                .iter()
+                .max_by(|a, b| a.weight.total_cmp(&b.weight))
+                .map_or(b.mean, |p| p.pose),
+            Estimate::Refined if sees_map && self.state.is_localised() => RefineProblem {
+                field: &self.field,
+                points,
+                stride,
+                unknown: c.unknown_value,
+                gain: c.score_gain,
+                heading_rad,
+                heading_sigma_rad: c.global_heading_sigma_rad,
+                max_shift_m: c.refine_max_shift_m,
+            }
+            .refine(&b.mean),
+            Estimate::Refined => b.mean,
+        }
     }
 
     /// Step 3: the new state; true when the vehicle is judged lost (the

@@ -3,10 +3,10 @@
 
 use anyhow::{Context, Result};
 use echofield::localize::outputs::{FOLDER_FILES, write_files};
-use echofield::localize::{LocalizeConfig, build_report, load_prior_map, localize};
+use echofield::localize::{LocalizeConfig, LocalizeReport, build_report, load_prior_map, localize};
 use echofield::output::folder::OutputFolder;
 use echofield::slam::{RunInfo, load_mission_with_keyframes};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 const EXAMPLES: &str = "\
@@ -92,6 +92,13 @@ pub fn run(args: Args) -> Result<()> {
     )
     .and_then(|()| folder.commit())
     .with_context(|| format!("cannot write the outputs into {}", args.output.display()))?;
+    print_summary(&report, map_s, &args.output);
+    Ok(())
+}
+
+/// The report's headline figures on stdout; `map_s` the time the map took
+/// to rebuild, s.
+fn print_summary(report: &LocalizeReport, map_s: f64, output: &Path) {
     println!(
         "{}: {} rotations on a map of {} nodes ({:.0} m² covered, built in {:.1} s): {}{}",
         report.mission,
@@ -124,7 +131,6 @@ pub fn run(args: Args) -> Result<()> {
         report.filter_time_ms.p95,
         report.rotation_time_ms.p50,
         report.recoveries.len(),
-        args.output.display()
+        output.display()
     );
-    Ok(())
 }

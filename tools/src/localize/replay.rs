@@ -19,7 +19,7 @@ use crate::slam::pipeline::prepare;
 use anyhow::{Context, Result, bail};
 use echofield_datasets::mcap::foxglove::ScanPoint;
 use echofield_frontend::dead_reckoning::{DeadReckoningConfig, ForwardFilter};
-use echofield_frontend::localization::{LocalizationStep, MonteCarloLocalizer};
+use echofield_frontend::localization::{LocalizationStep, MonteCarloLocalizer, Particle};
 use echofield_frontend::nodes::{Skip, build_node};
 use echofield_frontend::replay::{MissionRecord, ReadyRotations, mission_records};
 use echofield_frontend::rotation::Rotation;
@@ -164,13 +164,11 @@ impl Replay<'_> {
         };
         let build_s = t.elapsed().as_secs_f64();
         let t = Instant::now();
-        let motion = match self.previous_s {
-            Some(from_s) => Some(
-                nav.relative(from_s, node.stamp_s)
-                    .with_context(|| format!("dead reckoning of rotation {}", rotation.index))?,
-            ),
-            None => None,
-        };
+        let motion = self
+            .previous_s
+            .map(|from_s| nav.relative(from_s, node.stamp_s))
+            .transpose()
+            .with_context(|| format!("dead reckoning of rotation {}", rotation.index))?;
         let points = if node.in_dvl_gap {
             &[][..]
         } else {
@@ -181,22 +179,7 @@ impl Replay<'_> {
             .step(motion.as_ref(), node.dead_reckoning.theta(), points);
         let filter_s = t.elapsed().as_secs_f64();
         self.previous_s = Some(node.stamp_s);
-        let particles = self.filter.particles();
-        let stride = particles.len().div_ceil(CLOUD_POINTS).max(1);
-        let max_w = particles.iter().map(|p| p.weight).fold(0.0, f64::max);
-        let cloud = particles
-            .iter()
-            .step_by(stride)
-            .map(|p| ScanPoint {
-                x_m: p.pose.x(),
-                y_m: p.pose.y(),
-                intensity: if max_w > 0.0 {
-                    (p.weight / max_w) as f32
-                } else {
-                    1.0
-                },
-            })
-            .collect();
+        let cloud = particle_cloud(self.filter.particles());
         self.rotations.push(LocalizedRotation {
             rotation_index: rotation.index,
             stamp_s: node.stamp_s,
@@ -208,4 +191,25 @@ impl Replay<'_> {
         });
         Ok(())
     }
+}
+
+/// The particles as a point cloud for the MCAP: every n-th, at most
+/// [`CLOUD_POINTS`], the intensity their weight relative to the largest (1
+/// when every weight is 0).
+fn particle_cloud(particles: &[Particle]) -> Vec<ScanPoint> {
+    let stride = particles.len().div_ceil(CLOUD_POINTS).max(1);
+    let max_w = particles.iter().map(|p| p.weight).fold(0.0, f64::max);
+    particles
+        .iter()
+        .step_by(stride)
+        .map(|p| ScanPoint {
+            x_m: p.pose.x(),
+            y_m: p.pose.y(),
+            intensity: if max_w > 0.0 {
+                (p.weight / max_w) as f32
+            } else {
+                1.0
+            },
+        })
+        .collect()
 }

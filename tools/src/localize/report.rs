@@ -134,6 +134,9 @@ pub struct RotationRecord {
     pub distance_to_map_m: f64,
     /// Position error against the ground truth (see the module doc), m.
     pub error_m: Option<f64>,
+    /// The same for the particles' weighted mean (equal to `error_m` when
+    /// the estimate is the mean), m.
+    pub mean_error_m: Option<f64>,
     pub filter_ms: f64,
     pub build_ms: f64,
 }
@@ -168,103 +171,19 @@ pub fn build_report(
     config: &LocalizationConfig,
     run: Option<RunInfo>,
 ) -> LocalizeReport {
-    let rotations = &localized.rotations;
-    let truth: Vec<Option<Se2>> = rotations
+    let truth: Vec<Option<Se2>> = localized
+        .rotations
         .iter()
         .map(|r| ground_truth_at(&localized.ground_truth, r.stamp_s))
         .collect();
-    let per_rotation: Vec<RotationRecord> = rotations
-        .iter()
-        .zip(&truth)
-        .map(|(r, t)| {
-            let e = r.step.estimate;
-            let error_m = t.zip(map.truth_from_map).map(|(t, m)| {
-                let (x, y) = m.transform_xy(e.x(), e.y());
-                (t.x() - x).hypot(t.y() - y)
-            });
-            RotationRecord {
-                rotation_index: r.rotation_index,
-                stamp_s: r.stamp_s,
-                state: r.step.state,
-                x_m: e.x(),
-                y_m: e.y(),
-                theta_rad: e.theta(),
-                spread_m: r.step.spread_m,
-                heading_spread_rad: r.step.heading_spread_rad,
-                particles: r.step.particles,
-                fit: r.step.fit,
-                coverage: r.step.coverage,
-                reseeded: r.step.reseeded,
-                distance_to_map_m: map.distance_to_nodes_m(e.x(), e.y()),
-                error_m,
-                filter_ms: 1e3 * r.filter_s,
-                build_ms: 1e3 * r.build_s,
-            }
-        })
-        .collect();
+    let per_rotation = rotation_records(localized, map, &truth);
     let converged = per_rotation
         .iter()
         .position(|r| r.state == LocalizationState::Localised);
-    let after: &[RotationRecord] = converged.map_or(&[], |k| &per_rotation[k..]);
-    let localised_share = if after.is_empty() {
-        0.0
-    } else {
-        after.iter().filter(|r| r.state.is_localised()).count() as f64 / after.len() as f64
-    };
-    let recoveries = per_rotation
-        .iter()
-        .enumerate()
-        .filter(|(_, r)| r.state == LocalizationState::Lost)
-        .map(|(i, _)| Recovery {
-            lost_rotation: i,
-            relocalised_rotation: per_rotation[i + 1..]
-                .iter()
-                .position(|r| r.state == LocalizationState::Localised)
-                .map(|j| i + 1 + j),
-        })
-        .collect();
-    let fits: Vec<f64> = per_rotation
-        .iter()
-        .filter(|r| r.coverage >= config.min_coverage)
-        .map(|r| r.fit)
-        .collect();
-    // Accuracy from the first convergence on.
-    let start = converged.unwrap_or(per_rotation.len());
-    let errors: Vec<f64> = per_rotation[start..]
-        .iter()
-        .filter_map(|r| r.error_m)
-        .collect();
-    let (mut est, mut dr, mut gt) = (Vec::new(), Vec::new(), Vec::new());
-    let mut far_errors = Vec::new();
-    let mut far = 0;
-    for (k, (r, t)) in rotations.iter().zip(&truth).enumerate() {
-        let reference = match (t, map.truth_from_map) {
-            (Some(t), Some(m)) => Some(m.inverse().compose(t)),
-            _ => None,
-        };
-        let place = reference.unwrap_or(r.step.estimate);
-        let is_far = map.distance_to_nodes_m(place.x(), place.y()) > FAR_FROM_MAP_M;
-        if is_far && k >= start {
-            far += 1;
-            far_errors.extend(per_rotation[k].error_m);
-        }
-        if let Some(t) = t.filter(|_| k >= start) {
-            est.push(r.step.estimate.translation());
-            dr.push(r.dead_reckoning.translation());
-            gt.push(t.translation());
-        }
-    }
-    let periods: Vec<f64> = rotations
-        .windows(2)
-        .map(|w| w[1].stamp_s - w[0].stamp_s)
-        .collect();
-    let rotation_period_s = Stats::of(&periods).p50;
-    let particles: Vec<f64> = per_rotation.iter().map(|r| r.particles as f64).collect();
-    let filter_ms: Vec<f64> = per_rotation.iter().map(|r| r.filter_ms).collect();
-    let total_ms: Vec<f64> = per_rotation
-        .iter()
-        .map(|r| r.filter_ms + r.build_ms)
-        .collect();
+    let accuracy = Accuracy::of(localized, map, &truth, &per_rotation, converged);
+    let (fit_mean, fit_max) = fit_mean_and_max(&per_rotation, config.min_coverage);
+    let column =
+        |f: fn(&RotationRecord) -> f64| Stats::of(&per_rotation.iter().map(f).collect::<Vec<_>>());
     let localised_at_end = per_rotation.last().is_some_and(|r| r.state.is_localised());
     LocalizeReport {
         echofield_version: env!("CARGO_PKG_VERSION").to_string(),
@@ -282,26 +201,172 @@ pub fn build_report(
         .to_string(),
         converged_rotation: converged,
         time_to_converge_s: converged.map(|k| per_rotation[k].stamp_s - per_rotation[0].stamp_s),
-        localised_share,
-        recoveries,
-        fit_mean: if fits.is_empty() {
-            0.0
-        } else {
-            fits.iter().sum::<f64>() / fits.len() as f64
-        },
-        fit_max: fits.iter().copied().fold(0.0, f64::max),
-        ate_rmse_m: rmse(&errors),
-        ate_rmse_aligned_m: fitted_rmse(&est, &gt),
-        ate_rmse_dead_reckoning_m: fitted_rmse(&dr, &gt),
-        max_error_m: errors.iter().copied().reduce(f64::max),
-        rotations_far_from_map: far,
-        ate_rmse_far_from_map_m: rmse(&far_errors),
-        particles: Stats::of(&particles),
-        filter_time_ms: Stats::of(&filter_ms),
-        rotation_time_ms: Stats::of(&total_ms),
-        rotation_period_s,
+        localised_share: localised_share(converged.map_or(&[], |k| &per_rotation[k..])),
+        recoveries: recoveries(&per_rotation),
+        fit_mean,
+        fit_max,
+        ate_rmse_m: rmse(&accuracy.errors),
+        ate_rmse_aligned_m: fitted_rmse(&accuracy.estimate, &accuracy.truth),
+        ate_rmse_dead_reckoning_m: fitted_rmse(&accuracy.dead_reckoning, &accuracy.truth),
+        max_error_m: accuracy.errors.iter().copied().reduce(f64::max),
+        rotations_far_from_map: accuracy.far_from_map,
+        ate_rmse_far_from_map_m: rmse(&accuracy.far_errors),
+        particles: column(|r| r.particles as f64),
+        filter_time_ms: column(|r| r.filter_ms),
+        rotation_time_ms: column(|r| r.filter_ms + r.build_ms),
+        rotation_period_s: rotation_period_s(localized),
         config: config.clone(),
         run,
         per_rotation,
+    }
+}
+
+/// One record per rotation; `truth` the ground truth at each rotation's
+/// stamp (mission frame).
+fn rotation_records(
+    localized: &Localized,
+    map: &PriorMap,
+    truth: &[Option<Se2>],
+) -> Vec<RotationRecord> {
+    localized
+        .rotations
+        .iter()
+        .zip(truth)
+        .map(|(r, t)| {
+            let e = r.step.estimate;
+            let error_of = |p: Se2| {
+                t.zip(map.truth_from_map).map(|(t, m)| {
+                    let (x, y) = m.transform_xy(p.x(), p.y());
+                    (t.x() - x).hypot(t.y() - y)
+                })
+            };
+            RotationRecord {
+                rotation_index: r.rotation_index,
+                stamp_s: r.stamp_s,
+                state: r.step.state,
+                x_m: e.x(),
+                y_m: e.y(),
+                theta_rad: e.theta(),
+                spread_m: r.step.spread_m,
+                heading_spread_rad: r.step.heading_spread_rad,
+                particles: r.step.particles,
+                fit: r.step.fit,
+                coverage: r.step.coverage,
+                reseeded: r.step.reseeded,
+                distance_to_map_m: map.distance_to_nodes_m(e.x(), e.y()),
+                error_m: error_of(e),
+                mean_error_m: error_of(r.step.mean),
+                filter_ms: 1e3 * r.filter_s,
+                build_ms: 1e3 * r.build_s,
+            }
+        })
+        .collect()
+}
+
+/// Share of `after` (the records from the first convergence on) that are
+/// localised or coasting; 0 when empty.
+fn localised_share(after: &[RotationRecord]) -> f64 {
+    if after.is_empty() {
+        return 0.0;
+    }
+    after.iter().filter(|r| r.state.is_localised()).count() as f64 / after.len() as f64
+}
+
+/// Mean and largest fit over the rotations whose scan sees the map
+/// (coverage at least `min_coverage`); zeros without any.
+fn fit_mean_and_max(per_rotation: &[RotationRecord], min_coverage: f64) -> (f64, f64) {
+    let fits: Vec<f64> = per_rotation
+        .iter()
+        .filter(|r| r.coverage >= min_coverage)
+        .map(|r| r.fit)
+        .collect();
+    if fits.is_empty() {
+        return (0.0, 0.0);
+    }
+    let mean = fits.iter().sum::<f64>() / fits.len() as f64;
+    (mean, fits.iter().copied().fold(0.0, f64::max))
+}
+
+/// Every rotation judged lost, with the first localised one after it.
+fn recoveries(per_rotation: &[RotationRecord]) -> Vec<Recovery> {
+    per_rotation
+        .iter()
+        .enumerate()
+        .filter(|(_, r)| r.state == LocalizationState::Lost)
+        .map(|(i, _)| Recovery {
+            lost_rotation: i,
+            relocalised_rotation: per_rotation[i + 1..]
+                .iter()
+                .position(|r| r.state == LocalizationState::Localised)
+                .map(|j| i + 1 + j),
+        })
+        .collect()
+}
+
+/// Median time between consecutive rotations, s (0 with fewer than two).
+fn rotation_period_s(localized: &Localized) -> f64 {
+    let periods: Vec<f64> = localized
+        .rotations
+        .windows(2)
+        .map(|w| w[1].stamp_s - w[0].stamp_s)
+        .collect();
+    Stats::of(&periods).p50
+}
+
+/// The rotations from the first convergence on, against the ground truth
+/// (see the module doc).
+struct Accuracy {
+    /// Position errors through the map run's fit, m.
+    errors: Vec<f64>,
+    /// Estimates (map frame), dead reckoning (mission frame) and ground
+    /// truth (its own frame) at the rotations with ground truth.
+    estimate: Vec<Vector2<f64>>,
+    dead_reckoning: Vec<Vector2<f64>>,
+    truth: Vec<Vector2<f64>>,
+    /// Rotations more than [`FAR_FROM_MAP_M`] from every map node, and
+    /// their errors.
+    far_from_map: usize,
+    far_errors: Vec<f64>,
+}
+
+impl Accuracy {
+    fn of(
+        localized: &Localized,
+        map: &PriorMap,
+        truth: &[Option<Se2>],
+        per_rotation: &[RotationRecord],
+        converged: Option<usize>,
+    ) -> Self {
+        let start = converged.unwrap_or(per_rotation.len());
+        let mut a = Self {
+            errors: per_rotation[start..]
+                .iter()
+                .filter_map(|r| r.error_m)
+                .collect(),
+            estimate: Vec::new(),
+            dead_reckoning: Vec::new(),
+            truth: Vec::new(),
+            far_from_map: 0,
+            far_errors: Vec::new(),
+        };
+        let rotations = localized.rotations.iter().zip(truth).enumerate();
+        for (k, (r, t)) in rotations.skip(start) {
+            // Where the vehicle was, in the map frame: the ground truth
+            // when known, else the estimate.
+            let place = match (t, map.truth_from_map) {
+                (Some(t), Some(m)) => m.inverse().compose(t),
+                _ => r.step.estimate,
+            };
+            if map.distance_to_nodes_m(place.x(), place.y()) > FAR_FROM_MAP_M {
+                a.far_from_map += 1;
+                a.far_errors.extend(per_rotation[k].error_m);
+            }
+            if let Some(t) = t {
+                a.estimate.push(r.step.estimate.translation());
+                a.dead_reckoning.push(r.dead_reckoning.translation());
+                a.truth.push(t.translation());
+            }
+        }
+        a
     }
 }
