@@ -6,7 +6,7 @@
 use super::run::{Args, BarProgress, print_channels};
 use anyhow::{Context, Result, bail};
 use echofield::output::folder::OutputFolder;
-use echofield::slam::multi::{outputs, run_missions};
+use echofield::slam::multi::{MultiReport, outputs, run_missions};
 use echofield::slam::{RunInfo, SlamConfig, load_mission_choosing};
 use echofield_datasets::mcap::TopicChoice;
 use std::path::Path;
@@ -48,7 +48,20 @@ pub fn run(args: Args) -> Result<()> {
     outputs::write_files(folder.path(), &output)
         .and_then(|()| folder.commit())
         .with_context(|| format!("cannot write the outputs into {}", args.output.display()))?;
-    let report = &output.report;
+    print_summary(&output.report, start.elapsed().as_secs_f64(), &args.output);
+    for (run, path) in output.runs.iter().zip(&paths) {
+        super::check_health(
+            &run.report.health,
+            &path.display().to_string(),
+            args.allow_suspect,
+        )?;
+    }
+    Ok(())
+}
+
+/// One line per mission (nodes, loops, ATE, merged or not), then the
+/// merged graph's line; `elapsed_s` since the missions were loaded.
+fn print_summary(report: &MultiReport, elapsed_s: f64, output: &Path) {
     for m in &report.missions {
         println!(
             "mission {} ({}): {} nodes, {} loops{}{}",
@@ -78,22 +91,14 @@ pub fn run(args: Args) -> Result<()> {
             report.merged_ate_rmse_m.map_or(String::new(), |a| format!(
                 ", ATE of all missions together {a:.3} m"
             )),
-            start.elapsed().as_secs_f64(),
-            args.output.display()
+            elapsed_s,
+            output.display()
         );
     } else {
         println!(
             "no mission could be placed on the anchor's map (mission {}): each mission's own result is in {}",
             report.anchor,
-            args.output.display()
+            output.display()
         );
     }
-    for (run, path) in output.runs.iter().zip(&paths) {
-        super::check_health(
-            &run.report.health,
-            &path.display().to_string(),
-            args.allow_suspect,
-        )?;
-    }
-    Ok(())
 }

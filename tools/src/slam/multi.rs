@@ -219,84 +219,17 @@ pub fn combine_with_fixes(
     }
     for position in 1..order.len() {
         let m = order[position];
-        let own: Vec<Se2> = runs[m].graph.poses();
-        let placed: Vec<(usize, Vec<Se2>)> = order[..position]
-            .iter()
-            .copied()
-            .filter_map(|i| {
-                transforms[i].map(|t| {
-                    (
-                        i,
-                        runs[i].graph.poses().iter().map(|p| t.compose(p)).collect(),
-                    )
-                })
-            })
-            .collect();
-        let map_runs: Vec<(&SlamOutput, &[Se2])> = placed
-            .iter()
-            .map(|(i, p)| (&runs[*i], p.as_slice()))
-            .collect();
-        let fields = MapFields::build(&map_runs).context("the map for the placement")?;
-        let fixes_of = |i: usize| fixes.get(i).and_then(Option::as_ref);
-        let prior = fixes_of(m).and_then(|own_fixes| {
-            let map_fixes: Vec<(&SlamOutput, &[Se2], &PositionFixes)> = placed
-                .iter()
-                .filter_map(|(i, p)| fixes_of(*i).map(|f| (&runs[*i], p.as_slice(), f)))
-                .collect();
-            prior_from_fixes(&map_fixes, &runs[m], &own, own_fixes)
-        });
-        if fixes_of(m).is_some() && prior.is_none() {
-            let message = format!(
-                "mission {} ({}): its position fixes give no prior (too few fixes at its nodes or at the map's, or too little spread): searched without",
-                m + 1,
-                runs[m].mission_name
-            );
-            tracing::warn!("{message}");
-            warnings.push(message);
-        }
-        let placement = place(&fields, &runs[m], &own, prior.as_ref());
-        if let Some(check) = &placement.prior
-            && !check.consistent
-        {
-            let message = format!(
-                "mission {} ({}): the placement from the scans {} the prior from position fixes (sigma {:.1} m){}: the fixes were not trusted",
-                m + 1,
-                runs[m].mission_name,
-                if placement.map_from_mission.is_some() {
-                    "disagrees with"
-                } else {
-                    "found nothing within"
-                },
-                check.prior.sigma_m,
-                check.offset_m.map_or(String::new(), |d| format!(
-                    ", off by {d:.1} m ({:.1} sigma)",
-                    d / check.prior.sigma_m
-                ))
-            );
-            tracing::warn!("{message}");
-            warnings.push(message);
-        }
-        if placement.map_from_mission.is_none() {
-            let message = format!(
-                "mission {} ({}) could not be placed on the map of the missions before it ({} of {} probes agree, {} needed): it is not merged; its own result is written in its own frame",
-                m + 1,
-                runs[m].mission_name,
-                placement.agreeing,
-                placement.probes.len(),
-                placement::MIN_AGREEING
-            );
-            tracing::warn!("{message}");
-            warnings.push(message);
-        }
+        let placement = place_on_earlier(&runs, fixes, &order[..position], &transforms, m)?;
+        warnings.extend(placement_warnings(&runs[m], m, &placement, fixes.get(m)));
         transforms[m] = placement.map_from_mission;
         placements[m] = Some(placement);
     }
     let merged = if order.iter().skip(1).any(|&m| transforms[m].is_some()) {
         let merged = merge(&runs, &transforms, &order, config)?;
         if merged.accepted_cross() == 0 {
-            let message = "the missions were placed but no cross-mission loop was accepted: the merged graph rests on the placement alone".to_string();
-            tracing::warn!("{message}");
-            warnings.push(message);
+            warnings.push(warn(
+                "the missions were placed but no cross-mission loop was accepted: the merged graph rests on the placement alone".to_string(),
+            ));
         }
         Some(merged)
     } else {
@@ -304,7 +237,109 @@ pub fn combine_with_fixes(
     };
     let runs_len = runs.len();
     let mut output = MultiOutput {
-        report: MultiReport {
+        report: MultiReport::unfilled(&order, warnings),
+        runs,
+        placements,
+        mountings: vec![None; runs_len],
+        order,
+        merged,
+    };
+    fill_report(&mut output);
+    output.report.time_s = start.elapsed().as_secs_f64();
+    Ok(output)
+}
+
+/// Logs `message` as a warning and returns it for the report.
+fn warn(message: String) -> String {
+    tracing::warn!("{message}");
+    message
+}
+
+/// Places mission `m` on the map of the missions `earlier` (canonical
+/// order) that were placed (`transforms`), with the prior from position
+/// fixes when `m` and the map have them. Errors: the map's fields cannot
+/// be built.
+fn place_on_earlier(
+    runs: &[SlamOutput],
+    fixes: &[Option<PositionFixes>],
+    earlier: &[usize],
+    transforms: &[Option<Se2>],
+    m: usize,
+) -> Result<Placement> {
+    let own: Vec<Se2> = runs[m].graph.poses();
+    let placed: Vec<(usize, Vec<Se2>)> = earlier
+        .iter()
+        .filter_map(|&i| {
+            let t = transforms[i]?;
+            Some((
+                i,
+                runs[i].graph.poses().iter().map(|p| t.compose(p)).collect(),
+            ))
+        })
+        .collect();
+    let map_runs: Vec<(&SlamOutput, &[Se2])> = placed
+        .iter()
+        .map(|(i, p)| (&runs[*i], p.as_slice()))
+        .collect();
+    let fields = MapFields::build(&map_runs).context("the map for the placement")?;
+    let fixes_of = |i: usize| fixes.get(i).and_then(Option::as_ref);
+    let prior = fixes_of(m).and_then(|own_fixes| {
+        let map_fixes: Vec<(&SlamOutput, &[Se2], &PositionFixes)> = placed
+            .iter()
+            .filter_map(|(i, p)| fixes_of(*i).map(|f| (&runs[*i], p.as_slice(), f)))
+            .collect();
+        prior_from_fixes(&map_fixes, &runs[m], &own, own_fixes)
+    });
+    Ok(place(&fields, &runs[m], &own, prior.as_ref()))
+}
+
+/// The warnings of mission `m`'s placement (logged): fixes that gave no
+/// prior, a prior the scans did not confirm, a mission not placed.
+fn placement_warnings(
+    run: &SlamOutput,
+    m: usize,
+    placement: &Placement,
+    fixes: Option<&Option<PositionFixes>>,
+) -> Vec<String> {
+    let mut warnings = Vec::new();
+    let name = format!("mission {} ({})", m + 1, run.mission_name);
+    if fixes.is_some_and(Option::is_some) && placement.prior.is_none() {
+        warnings.push(warn(format!(
+            "{name}: its position fixes give no prior (too few fixes at its nodes or at the map's, or too little spread): searched without"
+        )));
+    }
+    if let Some(check) = &placement.prior
+        && !check.consistent
+    {
+        warnings.push(warn(format!(
+            "{name}: the placement from the scans {} the prior from position fixes (sigma {:.1} m){}: the fixes were not trusted",
+            if placement.map_from_mission.is_some() {
+                "disagrees with"
+            } else {
+                "found nothing within"
+            },
+            check.prior.sigma_m,
+            check.offset_m.map_or(String::new(), |d| format!(
+                ", off by {d:.1} m ({:.1} sigma)",
+                d / check.prior.sigma_m
+            ))
+        )));
+    }
+    if placement.map_from_mission.is_none() {
+        warnings.push(warn(format!(
+            "{name} could not be placed on the map of the missions before it ({} of {} probes agree, {} needed): it is not merged; its own result is written in its own frame",
+            placement.agreeing,
+            placement.probes.len(),
+            placement::MIN_AGREEING
+        )));
+    }
+    warnings
+}
+
+impl MultiReport {
+    /// The report before [`fill_report`]: the order and the warnings.
+    fn unfilled(order: &[usize], warnings: Vec<String>) -> Self {
+        Self {
             run: None,
             missions: Vec::new(),
             anchor: order.first().map_or(0, |a| a + 1),
@@ -319,16 +354,8 @@ pub fn combine_with_fixes(
             time_s: 0.0,
             warnings,
             definitions: DEFINITIONS,
-        },
-        runs,
-        placements,
-        mountings: vec![None; runs_len],
-        order,
-        merged,
-    };
-    fill_report(&mut output);
-    output.report.time_s = start.elapsed().as_secs_f64();
-    Ok(output)
+        }
+    }
 }
 
 /// `(estimate, truth)` of the nodes of `run` at `poses` that have ground

@@ -132,61 +132,17 @@ pub fn merge(
     order: &[usize],
     config: &SlamConfig,
 ) -> Result<Merged> {
-    let mut members = Vec::new();
-    let mut graph = PoseGraph::new();
-    let mut nodes: Vec<NodeData> = Vec::new();
-    let mut placed_poses: Vec<Se2> = Vec::new();
-    let mut mission_of: Vec<(usize, usize)> = Vec::new();
-    for &m in order {
-        let (run, placement) = (&runs[m], &placements[m]);
-        let Some(map_from_mission) = placement else {
-            continue;
-        };
-        let first = nodes.len();
-        members.push((m, first));
-        add_run(&mut graph, run, map_from_mission, first, m == members[0].0)?;
-        nodes.extend(node_data(run));
-        placed_poses.extend(
-            run.graph
-                .poses()
-                .iter()
-                .map(|p| map_from_mission.compose(p)),
-        );
-        mission_of.extend((0..run.nodes.len()).map(|k| (m, k)));
-    }
-    let candidates = cross_candidates(&members, &placed_poses, &nodes, config);
+    let mut joint = Joint::of(runs, placements, order)?;
+    let candidates = cross_candidates(&joint.members, &joint.placed_poses, &joint.nodes, config);
     let records: Vec<LoopRecord> = candidates
         .par_iter()
-        .map(|c| examine(c, c.to, &nodes, &config.matcher, &config.loops))
+        .map(|c| examine(c, c.to, &joint.nodes, &config.matcher, &config.loops))
         .collect::<Result<_, _>>()
         .context("cross-mission loop matches")?;
-    let mut cross_loops = Vec::with_capacity(records.len());
-    for mut record in records {
-        if record.rejected_by.is_none()
-            && let Some(z) = record.measurement
-        {
-            let (from, to) = (record.from as usize, record.to as usize);
-            let measured = placed_poses[from].compose(&z);
-            let placed = placed_poses[to];
-            let agrees = (measured.x() - placed.x()).hypot(measured.y() - placed.y())
-                <= CROSS_AGREE_M
-                && wrap_angle(measured.theta() - placed.theta()).abs() <= CROSS_AGREE_RAD;
-            if agrees {
-                record.accepted = true;
-            } else {
-                record.rejected_by = Some(RejectReason::Inconsistent);
-            }
-        }
-        let (from_mission, from_node) = mission_of[record.from as usize];
-        let (to_mission, to_node) = mission_of[record.to as usize];
-        cross_loops.push(MergedLoop {
-            from_mission,
-            from_node,
-            to_mission,
-            to_node,
-            record,
-        });
-    }
+    let mut cross_loops: Vec<MergedLoop> = records
+        .into_iter()
+        .map(|record| joint.judge(record))
+        .collect();
     for l in cross_loops.iter().filter(|l| l.record.accepted) {
         let r = &l.record;
         let (Some(z), Some(cov)) = (r.measurement, r.covariance) else {
@@ -195,8 +151,11 @@ pub fn merge(
         let Some(information) = cov.try_inverse() else {
             continue;
         };
-        graph.add_edge(Edge::new(EdgeKind::Loop, r.from, r.to, z, information))?;
+        joint
+            .graph
+            .add_edge(Edge::new(EdgeKind::Loop, r.from, r.to, z, information))?;
     }
+    let mut graph = joint.graph;
     let summary = optimize_robust(&mut graph, &config.backend.solver, &config.backend.outliers)
         .context("the merged graph's solve")?;
     let switched: HashSet<(u64, u64)> = summary
@@ -212,11 +171,89 @@ pub fn merge(
     }
     Ok(Merged {
         graph,
-        members,
+        members: joint.members,
         cross_loops,
         outliers: OutliersReport::from(&summary),
         summary: summary.least_squares,
     })
+}
+
+/// The placed missions joined, before any cross-mission loop: one graph,
+/// the nodes' data and placed poses under joint ids, and each joint id's
+/// `(mission, node)`.
+struct Joint {
+    /// `(mission, first joint id)` in the canonical order.
+    members: Vec<(usize, usize)>,
+    graph: PoseGraph,
+    nodes: Vec<NodeData>,
+    placed_poses: Vec<Se2>,
+    mission_of: Vec<(usize, usize)>,
+}
+
+impl Joint {
+    /// The missions of `order` that have a placement, in that order; the
+    /// first one keeps its fixed node (the anchor).
+    fn of(runs: &[SlamOutput], placements: &[Option<Se2>], order: &[usize]) -> Result<Self> {
+        let mut joint = Self {
+            members: Vec::new(),
+            graph: PoseGraph::new(),
+            nodes: Vec::new(),
+            placed_poses: Vec::new(),
+            mission_of: Vec::new(),
+        };
+        for &m in order {
+            let (run, placement) = (&runs[m], &placements[m]);
+            let Some(map_from_mission) = placement else {
+                continue;
+            };
+            let first = joint.nodes.len();
+            joint.members.push((m, first));
+            let anchor = m == joint.members[0].0;
+            add_run(&mut joint.graph, run, map_from_mission, first, anchor)?;
+            joint.nodes.extend(node_data(run));
+            joint.placed_poses.extend(
+                run.graph
+                    .poses()
+                    .iter()
+                    .map(|p| map_from_mission.compose(p)),
+            );
+            joint
+                .mission_of
+                .extend((0..run.nodes.len()).map(|k| (m, k)));
+        }
+        Ok(joint)
+    }
+
+    /// A cross-mission record that passed the loop checks is accepted when
+    /// its measurement agrees with the placement (within `CROSS_AGREE_M`
+    /// and `CROSS_AGREE_RAD`), else rejected as inconsistent; the record
+    /// under mission-local node numbers.
+    fn judge(&self, mut record: LoopRecord) -> MergedLoop {
+        if record.rejected_by.is_none()
+            && let Some(z) = record.measurement
+        {
+            let (from, to) = (record.from as usize, record.to as usize);
+            let measured = self.placed_poses[from].compose(&z);
+            let placed = self.placed_poses[to];
+            let agrees = (measured.x() - placed.x()).hypot(measured.y() - placed.y())
+                <= CROSS_AGREE_M
+                && wrap_angle(measured.theta() - placed.theta()).abs() <= CROSS_AGREE_RAD;
+            if agrees {
+                record.accepted = true;
+            } else {
+                record.rejected_by = Some(RejectReason::Inconsistent);
+            }
+        }
+        let (from_mission, from_node) = self.mission_of[record.from as usize];
+        let (to_mission, to_node) = self.mission_of[record.to as usize];
+        MergedLoop {
+            from_mission,
+            from_node,
+            to_mission,
+            to_node,
+            record,
+        }
+    }
 }
 
 /// Adds `run`'s graph with ids offset by `first`, its poses and priors

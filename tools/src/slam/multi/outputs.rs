@@ -19,6 +19,7 @@
 //! folder replaces the target as `run`'s does.
 
 use super::MultiOutput;
+use super::merge::Merged;
 use crate::eval::align_se2;
 use crate::output::write_atomic;
 use crate::plots::trajectory::{GROUND_TRUTH, OPTIMISED, Track, trajectory_png};
@@ -79,35 +80,8 @@ pub fn write_files(dir: &Path, output: &MultiOutput) -> Result<()> {
             Ok(w.write_all(first.config.to_toml_string().as_bytes())?)
         })?;
     }
-    for (m, run) in output.runs.iter().enumerate() {
-        let poses = output.poses(m);
-        let trajectory: Vec<TrajectoryPose> = run
-            .nodes
-            .iter()
-            .zip(&poses)
-            .map(|(n, p)| TrajectoryPose {
-                stamp_s: n.stamp_s,
-                pose: *p,
-            })
-            .collect();
-        write_atomic(&dir.join(format!("trajectory_{}_tum.txt", m + 1)), |w| {
-            Ok(write_tum(&trajectory, w)?)
-        })?;
-        let truth: Vec<TrajectoryPose> = run
-            .nodes
-            .iter()
-            .filter_map(|n| {
-                n.ground_truth.map(|g| TrajectoryPose {
-                    stamp_s: n.stamp_s,
-                    pose: g,
-                })
-            })
-            .collect();
-        if !truth.is_empty() {
-            write_atomic(&dir.join(format!("ground_truth_{}_tum.txt", m + 1)), |w| {
-                Ok(write_tum(&truth, w)?)
-            })?;
-        }
+    for m in 0..output.runs.len() {
+        write_mission_tum(dir, output, m)?;
     }
     write_atomic(&dir.join("poses.csv"), |w| {
         Ok(w.write_all(poses_csv(output).as_bytes())?)
@@ -122,24 +96,64 @@ pub fn write_files(dir: &Path, output: &MultiOutput) -> Result<()> {
     write_atomic(&dir.join("trajectory.png"), |w| Ok(w.write_all(&png)?))?;
     let mosaic = mosaic(output).context("the merged mosaic")?;
     if let Some(grid) = &mosaic {
-        let track: Vec<(f64, f64)> = output
-            .order
-            .iter()
-            .filter(|&&m| in_map(output, m))
-            .flat_map(|&m| output.poses(m))
-            .map(|p| (p.x(), p.y()))
-            .collect();
-        let png = mosaic_png(grid, &track)?;
-        write_atomic(&dir.join("mosaic.png"), |w| Ok(w.write_all(&png)?))?;
-        write_atomic(&dir.join("mosaic.pgw"), |w| {
-            Ok(w.write_all(world_file(grid).as_bytes())?)
-        })?;
+        write_mosaic_png(dir, output, grid)?;
     }
     write_mcap(&dir.join("mission.mcap"), output, mosaic.as_ref())
         .context("while writing mission.mcap")?;
     write_atomic(&dir.join("report.json"), |w| {
         serde_json::to_writer_pretty(&mut *w, &output.report)?;
         Ok(w.write_all(b"\n")?)
+    })
+}
+
+/// Mission `m`'s optimised trajectory, and its ground truth where it has
+/// one, as `trajectory_{m+1}_tum.txt` and `ground_truth_{m+1}_tum.txt`.
+fn write_mission_tum(dir: &Path, output: &MultiOutput, m: usize) -> Result<()> {
+    let run = &output.runs[m];
+    let poses = output.poses(m);
+    let trajectory: Vec<TrajectoryPose> = run
+        .nodes
+        .iter()
+        .zip(&poses)
+        .map(|(n, p)| TrajectoryPose {
+            stamp_s: n.stamp_s,
+            pose: *p,
+        })
+        .collect();
+    write_atomic(&dir.join(format!("trajectory_{}_tum.txt", m + 1)), |w| {
+        Ok(write_tum(&trajectory, w)?)
+    })?;
+    let truth: Vec<TrajectoryPose> = run
+        .nodes
+        .iter()
+        .filter_map(|n| {
+            n.ground_truth.map(|g| TrajectoryPose {
+                stamp_s: n.stamp_s,
+                pose: g,
+            })
+        })
+        .collect();
+    if !truth.is_empty() {
+        write_atomic(&dir.join(format!("ground_truth_{}_tum.txt", m + 1)), |w| {
+            Ok(write_tum(&truth, w)?)
+        })?;
+    }
+    Ok(())
+}
+
+/// `mosaic.png` (with the merged missions' tracks) and its world file.
+fn write_mosaic_png(dir: &Path, output: &MultiOutput, grid: &Grid) -> Result<()> {
+    let track: Vec<(f64, f64)> = output
+        .order
+        .iter()
+        .filter(|&&m| in_map(output, m))
+        .flat_map(|&m| output.poses(m))
+        .map(|p| (p.x(), p.y()))
+        .collect();
+    let png = mosaic_png(grid, &track)?;
+    write_atomic(&dir.join("mosaic.png"), |w| Ok(w.write_all(&png)?))?;
+    write_atomic(&dir.join("mosaic.pgw"), |w| {
+        Ok(w.write_all(world_file(grid).as_bytes())?)
     })
 }
 
@@ -363,113 +377,146 @@ pub fn write_mcap(
         .and_then(|&a| output.runs[a].nodes.first())
         .map_or(0.0, |n| n.stamp_s);
     if let Some(grid) = mosaic.filter(|g| g.width() > 0 && g.height() > 0) {
-        let (x0, y0) = grid.origin_m();
-        let cells: Vec<u8> = grid
-            .values()
-            .iter()
-            .map(|&v| (v.clamp(0.0, 1.0) * 255.0) as u8)
-            .collect();
-        let cells = GridCells {
-            origin: Se2::new(x0, y0, 0.0),
-            column_count: grid.width(),
-            cell_size_m: grid.cell_size_m(),
-            cells: &cells,
-        };
-        w.write_grid("/slam/mosaic", t0, FRAME_WORLD, &cells)?;
+        write_mosaic(&mut w, t0, grid)?;
     }
     let all_poses: Vec<Vec<Se2>> = (0..output.runs.len()).map(|m| output.poses(m)).collect();
     if let Some(merged) = &output.merged {
-        let segments: Vec<LineSegment> = merged
-            .cross_loops
-            .iter()
-            .filter(|l| l.record.accepted)
-            .filter_map(|l| {
-                let a = all_poses.get(l.from_mission)?.get(l.from_node)?;
-                let b = all_poses.get(l.to_mission)?.get(l.to_node)?;
-                Some(LineSegment {
-                    from_m: (a.x(), a.y()),
-                    to_m: (b.x(), b.y()),
-                    rgba: [0.9, 0.2, 0.9, 0.9],
-                })
-            })
-            .collect();
-        w.write_scene_lines(
-            "/slam/loops/cross",
-            t0,
-            FRAME_WORLD,
-            "cross",
-            2.0,
-            &segments,
-        )?;
+        write_cross_loops(&mut w, t0, merged, &all_poses)?;
     }
     let mut pixels = Vec::new();
-    for (m, (run, poses)) in output.runs.iter().zip(&all_poses).enumerate() {
-        let prefix = format!("/mission_{}", m + 1);
-        let frame = frame_of(output, m);
-        let vehicle = format!("vehicle_{}", m + 1);
-        let Some(first) = run.nodes.first() else {
-            continue;
-        };
-        w.write_poses_in_frame(
-            &format!("{prefix}/slam/trajectory"),
-            first.stamp_s,
-            &frame,
-            poses,
-        )?;
-        let own: Vec<LineSegment> = run
-            .loops
-            .iter()
-            .filter(|r| r.accepted)
-            .filter_map(|r| {
-                let a = poses.get(usize::try_from(r.from).ok()?)?;
-                let b = poses.get(usize::try_from(r.to).ok()?)?;
-                Some(LineSegment {
-                    from_m: (a.x(), a.y()),
-                    to_m: (b.x(), b.y()),
-                    rgba: [0.2, 0.4, 0.9, 0.9],
-                })
-            })
-            .collect();
-        w.write_scene_lines(
-            &format!("{prefix}/slam/loops/accepted"),
-            first.stamp_s,
-            &frame,
-            &format!("{prefix}/loops"),
-            2.0,
-            &own,
-        )?;
-        for (k, (node, pose)) in run.nodes.iter().zip(poses).enumerate() {
-            let t = node.stamp_s;
-            w.write_frame_transform("/tf", t, &frame, &vehicle, pose)?;
-            w.write_pose_in_frame(&format!("{prefix}/slam/pose"), t, &frame, pose)?;
-            if let Some(scan) = run.scans.get(k).filter(|s| !s.is_empty()) {
-                let points: Vec<ScanPoint> = scan
-                    .points
-                    .iter()
-                    .zip(&scan.intensities)
-                    .map(|(p, &i)| ScanPoint {
-                        x_m: p.x,
-                        y_m: p.y,
-                        intensity: i,
-                    })
-                    .collect();
-                w.write_point_cloud(&format!("{prefix}/slam/scan"), t, &frame, pose, &points)?;
-            }
-            if let Some(image) = run.images.get(k).filter(|i| !i.is_empty()) {
-                let grid = image
-                    .grid_once()
-                    .with_context(|| format!("acoustic image of mission {} node {k}", m + 1))?;
-                let png = image_png(&grid, &mut pixels)?;
-                w.write_compressed_image(
-                    &format!("{prefix}/slam/acoustic_image"),
-                    t,
-                    &vehicle,
-                    "png",
-                    &png,
-                )?;
-            }
-        }
+    for (m, poses) in all_poses.iter().enumerate() {
+        write_mission(&mut w, output, m, poses, &mut pixels)?;
     }
     w.complete()?.persist()?;
+    Ok(())
+}
+
+/// The merged mosaic on `/slam/mosaic` (values in `[0, 1]` as bytes).
+fn write_mosaic(w: &mut MissionWriter, t0: f64, grid: &Grid) -> Result<()> {
+    let (x0, y0) = grid.origin_m();
+    let cells: Vec<u8> = grid
+        .values()
+        .iter()
+        .map(|&v| (v.clamp(0.0, 1.0) * 255.0) as u8)
+        .collect();
+    let cells = GridCells {
+        origin: Se2::new(x0, y0, 0.0),
+        column_count: grid.width(),
+        cell_size_m: grid.cell_size_m(),
+        cells: &cells,
+    };
+    w.write_grid("/slam/mosaic", t0, FRAME_WORLD, &cells)?;
+    Ok(())
+}
+
+/// The accepted cross-mission loops on `/slam/loops/cross`, between the
+/// merged poses `all_poses` (per mission).
+fn write_cross_loops(
+    w: &mut MissionWriter,
+    t0: f64,
+    merged: &Merged,
+    all_poses: &[Vec<Se2>],
+) -> Result<()> {
+    let segments: Vec<LineSegment> = merged
+        .cross_loops
+        .iter()
+        .filter(|l| l.record.accepted)
+        .filter_map(|l| {
+            let a = all_poses.get(l.from_mission)?.get(l.from_node)?;
+            let b = all_poses.get(l.to_mission)?.get(l.to_node)?;
+            Some(LineSegment {
+                from_m: (a.x(), a.y()),
+                to_m: (b.x(), b.y()),
+                rgba: [0.9, 0.2, 0.9, 0.9],
+            })
+        })
+        .collect();
+    w.write_scene_lines(
+        "/slam/loops/cross",
+        t0,
+        FRAME_WORLD,
+        "cross",
+        2.0,
+        &segments,
+    )?;
+    Ok(())
+}
+
+/// Mission `m`'s topics under `/mission_{m+1}`: its trajectory and
+/// accepted loops at `poses`, and per node the transform, pose, scan and
+/// acoustic image (`pixels` is the PNG encoder's scratch buffer).
+fn write_mission(
+    w: &mut MissionWriter,
+    output: &MultiOutput,
+    m: usize,
+    poses: &[Se2],
+    pixels: &mut Vec<u8>,
+) -> Result<()> {
+    let run = &output.runs[m];
+    let prefix = format!("/mission_{}", m + 1);
+    let frame = frame_of(output, m);
+    let vehicle = format!("vehicle_{}", m + 1);
+    let Some(first) = run.nodes.first() else {
+        return Ok(());
+    };
+    w.write_poses_in_frame(
+        &format!("{prefix}/slam/trajectory"),
+        first.stamp_s,
+        &frame,
+        poses,
+    )?;
+    let own: Vec<LineSegment> = run
+        .loops
+        .iter()
+        .filter(|r| r.accepted)
+        .filter_map(|r| {
+            let a = poses.get(usize::try_from(r.from).ok()?)?;
+            let b = poses.get(usize::try_from(r.to).ok()?)?;
+            Some(LineSegment {
+                from_m: (a.x(), a.y()),
+                to_m: (b.x(), b.y()),
+                rgba: [0.2, 0.4, 0.9, 0.9],
+            })
+        })
+        .collect();
+    w.write_scene_lines(
+        &format!("{prefix}/slam/loops/accepted"),
+        first.stamp_s,
+        &frame,
+        &format!("{prefix}/loops"),
+        2.0,
+        &own,
+    )?;
+    for (k, (node, pose)) in run.nodes.iter().zip(poses).enumerate() {
+        let t = node.stamp_s;
+        w.write_frame_transform("/tf", t, &frame, &vehicle, pose)?;
+        w.write_pose_in_frame(&format!("{prefix}/slam/pose"), t, &frame, pose)?;
+        if let Some(scan) = run.scans.get(k).filter(|s| !s.is_empty()) {
+            let points: Vec<ScanPoint> = scan
+                .points
+                .iter()
+                .zip(&scan.intensities)
+                .map(|(p, &i)| ScanPoint {
+                    x_m: p.x,
+                    y_m: p.y,
+                    intensity: i,
+                })
+                .collect();
+            w.write_point_cloud(&format!("{prefix}/slam/scan"), t, &frame, pose, &points)?;
+        }
+        if let Some(image) = run.images.get(k).filter(|i| !i.is_empty()) {
+            let grid = image
+                .grid_once()
+                .with_context(|| format!("acoustic image of mission {} node {k}", m + 1))?;
+            let png = image_png(&grid, pixels)?;
+            w.write_compressed_image(
+                &format!("{prefix}/slam/acoustic_image"),
+                t,
+                &vehicle,
+                "png",
+                &png,
+            )?;
+        }
+    }
     Ok(())
 }

@@ -164,35 +164,8 @@ impl CoarseIndex {
         count: usize,
         separation_m: f64,
     ) -> Peaks {
-        // Each point's cell offset from the pose's cell at every heading:
-        // with the pose at a cell centre, a point at `R p` from it falls
-        // in the cell `floor(0.5 + (R p) / cell)` away.
-        let headings: Vec<(f64, Vec<(i64, i64)>)> = (-region.steps..=region.steps)
-            .map(|k| {
-                let theta = wrap_angle(region.centre_rad + k as f64 * region.step_rad);
-                let (s, c) = theta.sin_cos();
-                let offsets = points
-                    .iter()
-                    .map(|p| {
-                        let (x, y) = (c * p.x - s * p.y, s * p.x + c * p.y);
-                        (
-                            (0.5 + x / self.cell_m).floor() as i64,
-                            (0.5 + y / self.cell_m).floor() as i64,
-                        )
-                    })
-                    .collect();
-                (theta, offsets)
-            })
-            .collect();
-        let top = 1i64 << LEVELS;
-        let (mut x0, mut y0, mut x1, mut y1) = (0, 0, self.width - 1, self.height - 1);
-        if let Some((cx, cy, r)) = region.disc {
-            let to_cell = |x: f64, o: f64| ((x - o) / self.cell_m).floor() as i64;
-            x0 = x0.max(to_cell(cx - r, self.origin_m.0));
-            y0 = y0.max(to_cell(cy - r, self.origin_m.1));
-            x1 = x1.min(to_cell(cx + r, self.origin_m.0));
-            y1 = y1.min(to_cell(cy + r, self.origin_m.1));
-        }
+        let headings = self.heading_offsets(points, region);
+        let cells = self.cells_of(region);
         let mut search = Search {
             index: self,
             region,
@@ -201,27 +174,7 @@ impl CoarseIndex {
             evaluations: 0,
         };
         for _ in 0..count {
-            let mut roots: Vec<(f64, usize, i64, i64)> = Vec::new();
-            for (a, (_, offsets)) in headings.iter().enumerate() {
-                let mut iy = y0;
-                while iy <= y1 {
-                    let mut ix = x0;
-                    while ix <= x1 {
-                        if search.admissible(LEVELS, ix, iy) {
-                            search.evaluations += 1;
-                            roots.push((self.bound(LEVELS, ix, iy, offsets), a, ix, iy));
-                        }
-                        ix += top;
-                    }
-                    iy += top;
-                }
-            }
-            roots.sort_by(|p, q| {
-                q.0.total_cmp(&p.0)
-                    .then(p.1.cmp(&q.1))
-                    .then(p.3.cmp(&q.3))
-                    .then(p.2.cmp(&q.2))
-            });
+            let roots = search.roots(&headings, cells);
             let mut best: Option<(f64, usize, i64, i64)> = None;
             for &(b, a, ix, iy) in &roots {
                 if best.is_some_and(|(s, ..)| b <= s) {
@@ -240,7 +193,48 @@ impl CoarseIndex {
             poses: search.found,
         }
     }
+
+    /// For every heading of `region`: the heading and each point's cell
+    /// offset from the pose's cell. With the pose at a cell centre, a
+    /// point at `R p` from it falls in the cell `floor(0.5 + (R p) / cell)`
+    /// away.
+    fn heading_offsets(&self, points: &[Point2<f64>], region: &Region) -> Vec<HeadingOffsets> {
+        (-region.steps..=region.steps)
+            .map(|k| {
+                let theta = wrap_angle(region.centre_rad + k as f64 * region.step_rad);
+                let (s, c) = theta.sin_cos();
+                let offsets = points
+                    .iter()
+                    .map(|p| {
+                        let (x, y) = (c * p.x - s * p.y, s * p.x + c * p.y);
+                        (
+                            (0.5 + x / self.cell_m).floor() as i64,
+                            (0.5 + y / self.cell_m).floor() as i64,
+                        )
+                    })
+                    .collect();
+                (theta, offsets)
+            })
+            .collect()
+    }
+
+    /// The cells `(x0, y0, x1, y1)`, inclusive, a pose of `region` may
+    /// take: the whole index, cut to the region's disc when it has one.
+    fn cells_of(&self, region: &Region) -> (i64, i64, i64, i64) {
+        let (mut x0, mut y0, mut x1, mut y1) = (0, 0, self.width - 1, self.height - 1);
+        if let Some((cx, cy, r)) = region.disc {
+            let to_cell = |x: f64, o: f64| ((x - o) / self.cell_m).floor() as i64;
+            x0 = x0.max(to_cell(cx - r, self.origin_m.0));
+            y0 = y0.max(to_cell(cy - r, self.origin_m.1));
+            x1 = x1.min(to_cell(cx + r, self.origin_m.0));
+            y1 = y1.min(to_cell(cy + r, self.origin_m.1));
+        }
+        (x0, y0, x1, y1)
+    }
 }
+
+/// A heading (radians) and every point's cell offset at it.
+type HeadingOffsets = (f64, Vec<(i64, i64)>);
 
 /// The state of one [`CoarseIndex::peaks`] call.
 struct Search<'a> {
@@ -252,6 +246,39 @@ struct Search<'a> {
 }
 
 impl Search<'_> {
+    /// The top-level nodes of the search over `cells` at every heading
+    /// that no peak found so far excludes, with their bounds, best first
+    /// (ties by heading, then row, then column).
+    fn roots(
+        &mut self,
+        headings: &[HeadingOffsets],
+        (x0, y0, x1, y1): (i64, i64, i64, i64),
+    ) -> Vec<(f64, usize, i64, i64)> {
+        let top = 1i64 << LEVELS;
+        let mut roots: Vec<(f64, usize, i64, i64)> = Vec::new();
+        for (a, (_, offsets)) in headings.iter().enumerate() {
+            let mut iy = y0;
+            while iy <= y1 {
+                let mut ix = x0;
+                while ix <= x1 {
+                    if self.admissible(LEVELS, ix, iy) {
+                        self.evaluations += 1;
+                        roots.push((self.index.bound(LEVELS, ix, iy, offsets), a, ix, iy));
+                    }
+                    ix += top;
+                }
+                iy += top;
+            }
+        }
+        roots.sort_by(|p, q| {
+            q.0.total_cmp(&p.0)
+                .then(p.1.cmp(&q.1))
+                .then(p.3.cmp(&q.3))
+                .then(p.2.cmp(&q.2))
+        });
+        roots
+    }
+
     /// Whether the block of level `h` at `(ix, iy)` may hold a pose to
     /// score: a covered cell, inside the region, not wholly within the
     /// separation of a peak already found.
