@@ -131,7 +131,42 @@ pub fn normalise_beams(beams: &[SonarBeam], config: &ImageConfig) -> Profiles {
 
 /// [`normalise_beams`], one byte per bin ([`CodedProfiles`]).
 pub fn normalise_beams_coded(beams: &[SonarBeam], config: &ImageConfig) -> CodedProfiles {
-    // Steps 0-1: the smoothed, masked raw values of every kept bin, flat.
+    let (mut raw, offsets) = masked_raw(beams, config);
+    // Step 1b: echoes a neighbouring beam hears much louder go.
+    if let Some(first) = beams.first() {
+        suppress_bins(
+            &mut raw,
+            &offsets,
+            beams,
+            first.bin_size_m,
+            &config.off_axis,
+        );
+    }
+    let lengths: Vec<usize> = offsets.windows(2).map(|w| w[1] - w[0]).collect();
+    let background = background_per_bin(&raw, &offsets, &lengths, config.background_quantile);
+    // Step 2 in place: the raw values become their difference to the
+    // background.
+    let mut hist = [0u32; 256];
+    for (&start, &n) in offsets.iter().zip(&lengths) {
+        for (d, &b) in raw[start..start + n].iter_mut().zip(&background) {
+            *d = d.saturating_sub(b);
+            hist[usize::from(*d)] += 1;
+        }
+    }
+    let diffs = raw;
+    CodedProfiles {
+        table: normalisation_table(&hist, diffs.len() as u32, config),
+        codes: Profiles {
+            offsets,
+            values: diffs,
+        },
+    }
+}
+
+/// Steps 0-1: the smoothed, masked raw values of every kept bin of every
+/// beam, flat, and the offset of each beam's first bin (one more offset
+/// than beams: the end).
+fn masked_raw(beams: &[SonarBeam], config: &ImageConfig) -> (Vec<u8>, Vec<usize>) {
     let mut offsets = Vec::with_capacity(beams.len() + 1);
     offsets.push(0);
     let total: usize = beams.iter().map(|b| kept_bins(b, config.max_range_m)).sum();
@@ -156,51 +191,38 @@ pub fn normalise_beams_coded(beams: &[SonarBeam], config: &ImageConfig) -> Coded
         raw[start..start + masked].fill(0);
         offsets.push(raw.len());
     }
-    // Step 1b: echoes a neighbouring beam hears much louder go.
-    if let Some(first) = beams.first() {
-        suppress_bins(
-            &mut raw,
-            &offsets,
-            beams,
-            first.bin_size_m,
-            &config.off_axis,
-        );
-    }
-    let lengths: Vec<usize> = offsets.windows(2).map(|w| w[1] - w[0]).collect();
+    (raw, offsets)
+}
 
+/// The background of every range bin: the `quantile` of that bin over
+/// the beams that reach it (0 everywhere for a quantile <= 0).
+fn background_per_bin(raw: &[u8], offsets: &[usize], lengths: &[usize], quantile: f64) -> Vec<u8> {
     let max_bins = lengths.iter().copied().max().unwrap_or(0);
-    let background: Vec<u8> = match config.background_quantile {
-        q if q <= 0.0 => vec![0; max_bins],
-        q => {
-            let mut hist = [0u32; 256];
-            (0..max_bins)
-                .map(|i| {
-                    hist.fill(0);
-                    let mut count = 0u32;
-                    for (&start, &n) in offsets.iter().zip(&lengths) {
-                        if n > i {
-                            hist[usize::from(raw[start + i])] += 1;
-                            count += 1;
-                        }
-                    }
-                    histogram_quantile(&hist, count, q)
-                })
-                .collect()
-        }
-    };
-
-    // Step 2 in place: the raw values become their difference to the
-    // background.
-    let mut hist = [0u32; 256];
-    for (&start, &n) in offsets.iter().zip(&lengths) {
-        for (d, &b) in raw[start..start + n].iter_mut().zip(&background) {
-            *d = d.saturating_sub(b);
-            hist[usize::from(*d)] += 1;
-        }
+    if quantile <= 0.0 {
+        return vec![0; max_bins];
     }
-    let diffs = raw;
-    let total = diffs.len() as u32;
-    let mut scale = histogram_quantile(&hist, total, config.normalisation_quantile);
+    let mut hist = [0u32; 256];
+    (0..max_bins)
+        .map(|i| {
+            hist.fill(0);
+            let mut count = 0u32;
+            for (&start, &n) in offsets.iter().zip(lengths) {
+                if n > i {
+                    hist[usize::from(raw[start + i])] += 1;
+                    count += 1;
+                }
+            }
+            histogram_quantile(&hist, count, quantile)
+        })
+        .collect()
+}
+
+/// The value of each difference code 0-255 (step 3): divided by the
+/// `normalisation_quantile` of the differences (`hist` over `total`
+/// bins; their largest when that quantile is 0), clamped to 1 and raised
+/// to `intensity_exponent`. All zero when every difference is 0.
+fn normalisation_table(hist: &[u32; 256], total: u32, config: &ImageConfig) -> Box<[f32; 256]> {
+    let mut scale = histogram_quantile(hist, total, config.normalisation_quantile);
     if scale == 0 {
         scale = hist.iter().rposition(|&c| c > 0).unwrap_or(0) as u8;
     }
@@ -212,13 +234,7 @@ pub fn normalise_beams_coded(beams: &[SonarBeam], config: &ImageConfig) -> Coded
             *v = (d as f64 * inv).min(1.0).powf(gamma) as f32;
         }
     }
-    CodedProfiles {
-        codes: Profiles {
-            offsets,
-            values: diffs,
-        },
-        table,
-    }
+    table
 }
 
 /// The moving average of the segmentation, rounded to u8 as the image

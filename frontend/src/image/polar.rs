@@ -68,6 +68,54 @@ pub struct PolarSamples {
     max_wedge_rad: f64,
 }
 
+/// The beams of one layer visited at a query: the angular window's
+/// weighted sum, or the nearest beam's value.
+#[derive(Default)]
+struct LayerSum {
+    weighted: f64,
+    weights: f64,
+    /// `(α, value)` of the nearest beam so far.
+    nearest: Option<(f64, f64)>,
+}
+
+impl LayerSum {
+    /// Adds beam `j`'s sample at the query when the query lies within
+    /// `window` of its axis and in front of it; false otherwise.
+    fn visit(&mut self, samples: &PolarSamples, j: usize, x_m: f64, y_m: f64, window: f64) -> bool {
+        let (tan_alpha, along) = samples.offset(j, x_m, y_m);
+        let alpha = small_atan(tan_alpha.abs());
+        if along <= 0.0 || alpha >= window {
+            return false;
+        }
+        let beam = &samples.beams[j];
+        let (qx, qy) = (x_m - beam.origin_x_m, y_m - beam.origin_y_m);
+        let r = (qx * qx + qy * qy).sqrt();
+        match samples.interpolation {
+            Interpolation::AngularWindow => {
+                let w = 1.0 - alpha / window;
+                self.weighted += w * samples.linear_in_range(j, beam, r);
+                self.weights += w;
+            }
+            Interpolation::Nearest => {
+                if self.nearest.is_none_or(|(a, _)| alpha < a) {
+                    self.nearest = Some((alpha, samples.nearest_in_range(j, beam, r)));
+                }
+            }
+        }
+        true
+    }
+
+    fn contribution(self, interpolation: Interpolation) -> Contribution {
+        match (interpolation, self.nearest) {
+            (Interpolation::AngularWindow, _) if self.weights > 0.0 => {
+                Contribution::Mean(self.weighted / self.weights)
+            }
+            (Interpolation::Nearest, Some((alpha, v))) => Contribution::Nearest(v, alpha),
+            _ => Contribution::None,
+        }
+    }
+}
+
 /// What one layer contributes at a query.
 enum Contribution {
     None,
@@ -162,6 +210,33 @@ impl PolarSamples {
 
     /// The interpolation within one layer.
     fn layer_value(&self, layer: &Layer, bearing: f64, x_m: f64, y_m: f64) -> Contribution {
+        let (start, end) = (layer.start, layer.end);
+        let (lo, hi, bracketed) = self.bracket(layer, bearing, x_m, y_m);
+        let window = self.window_at(lo, hi, bracketed);
+        let mut sum = LayerSum::default();
+        // Each side stops at its first beam outside the window.
+        for j in (start.max(lo.saturating_sub(MAX_NEIGHBOURS))..=lo).rev() {
+            if !sum.visit(self, j, x_m, y_m, window) {
+                break;
+            }
+        }
+        if hi != lo {
+            for j in hi..end.min(hi + MAX_NEIGHBOURS) {
+                if !sum.visit(self, j, x_m, y_m, window) {
+                    break;
+                }
+            }
+        }
+        sum.contribution(self.interpolation)
+    }
+
+    /// The beams `(lo, hi)` of `layer` around the query at `(x_m, y_m)`,
+    /// bearing `bearing` from the centre: `hi = lo + 1` where the query
+    /// lies between two beams, seen from their own origins (a binary
+    /// search on the bearing, then a walk that corrects for the origins'
+    /// parallax); `lo = hi` at the layer's ends. The flag: the query lies
+    /// between `lo` and `hi`.
+    fn bracket(&self, layer: &Layer, bearing: f64, x_m: f64, y_m: f64) -> (usize, usize, bool) {
         let (start, end, sign) = (layer.start, layer.end, layer.sign);
         // Position along the layer: bearings times `sign` increase. The
         // query's bearing is moved by whole turns next to the layer's.
@@ -192,63 +267,21 @@ impl PolarSamples {
         }
         let lo = hi.saturating_sub(1).max(start);
         let bracketed = end - start > 1 && side(lo) >= 0.0 && side(hi) < 0.0;
+        (lo, hi, bracketed)
+    }
+
+    /// The angular window (radians) of a query between beams `lo` and
+    /// `hi` (`bracketed`: it lies between them): widened to the gap
+    /// between them where they bracket it within `max_wedge_rad`, half the
+    /// gap for the nearest beam, else the configured half-width.
+    fn window_at(&self, lo: usize, hi: usize, bracketed: bool) -> f64 {
         let gap = (self.bearings[hi] - self.bearings[lo]).abs();
         let in_wedge = bracketed && gap <= self.max_wedge_rad;
-        let window = match (self.interpolation, in_wedge) {
+        match (self.interpolation, in_wedge) {
             (Interpolation::AngularWindow, true) => self.half_width_rad.max(gap),
             (Interpolation::AngularWindow, false) => self.half_width_rad,
             (Interpolation::Nearest, true) => 0.5 * gap.max(1e-9),
             (Interpolation::Nearest, false) => self.half_width_rad,
-        };
-        let (mut weighted, mut weights) = (0.0, 0.0);
-        let mut nearest: Option<(f64, f64)> = None;
-        let mut visit = |j: usize| -> bool {
-            let (tan_alpha, along) = self.offset(j, x_m, y_m);
-            let alpha = small_atan(tan_alpha.abs());
-            if along <= 0.0 || alpha >= window {
-                return false;
-            }
-            let beam = &self.beams[j];
-            let (qx, qy) = (x_m - beam.origin_x_m, y_m - beam.origin_y_m);
-            let r = (qx * qx + qy * qy).sqrt();
-            match self.interpolation {
-                Interpolation::AngularWindow => {
-                    let w = 1.0 - alpha / window;
-                    weighted += w * self.linear_in_range(j, beam, r);
-                    weights += w;
-                }
-                Interpolation::Nearest => {
-                    if nearest.is_none_or(|(a, _)| alpha < a) {
-                        nearest = Some((alpha, self.nearest_in_range(j, beam, r)));
-                    }
-                }
-            }
-            true
-        };
-        // Each side stops after two beams in a row outside the window (the
-        // parallax of moving origins can make one beam look out of order).
-        let mut misses = 0;
-        for j in (start.max(lo.saturating_sub(MAX_NEIGHBOURS))..=lo).rev() {
-            misses = if visit(j) { 0 } else { misses + 1 };
-            if misses == 1 {
-                break;
-            }
-        }
-        if hi != lo {
-            misses = 0;
-            for j in hi..end.min(hi + MAX_NEIGHBOURS) {
-                misses = if visit(j) { 0 } else { misses + 1 };
-                if misses == 1 {
-                    break;
-                }
-            }
-        }
-        match (self.interpolation, nearest) {
-            (Interpolation::AngularWindow, _) if weights > 0.0 => {
-                Contribution::Mean(weighted / weights)
-            }
-            (Interpolation::Nearest, Some((alpha, v))) => Contribution::Nearest(v, alpha),
-            _ => Contribution::None,
         }
     }
 
