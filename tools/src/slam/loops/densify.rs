@@ -310,16 +310,8 @@ mod tests {
         rejected_by: Option<RejectReason>,
         densified: bool,
     ) -> LoopRecord {
-        let candidate = Candidate {
-            from,
-            to,
-            prior: Se2::identity(),
-            prior_covariance: Matrix3::identity(),
-            predicted_overlap: 0.8,
-            raw_window: SearchWindow::new(1.0, 1.0, 0.1),
-            wide: false,
-            densify: densified,
-        };
+        let mut candidate = record_candidate(from, to);
+        candidate.densify = densified;
         let mut record = candidate.record(to, &LoopConfig::default());
         record.rejected_by = rejected_by;
         record

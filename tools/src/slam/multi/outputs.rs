@@ -23,11 +23,11 @@ use super::merge::Merged;
 use crate::eval::align_se2;
 use crate::output::write_atomic;
 use crate::plots::trajectory::{GROUND_TRUTH, OPTIMISED, Track, trajectory_png};
-use crate::slam::outputs::foxglove::{FRAME_WORLD, image_png};
+use crate::slam::outputs::foxglove::{FRAME_WORLD, image_png, scan_points, segment, write_mosaic};
 use crate::slam::outputs::mosaic::{MosaicCanvas, MosaicConfig, mosaic_png, placeable, world_file};
 use anyhow::{Context, Result};
 use echofield_datasets::mcap::MissionWriter;
-use echofield_datasets::mcap::foxglove::{GridCells, LineSegment, ScanPoint};
+use echofield_datasets::mcap::foxglove::LineSegment;
 use echofield_frontend::image::Grid;
 use echofield_frontend::sensors::SensorMounting;
 use echofield_graph::Se2;
@@ -225,13 +225,18 @@ fn loops_csv(output: &MultiOutput) -> String {
     s
 }
 
-fn caption(output: &MultiOutput) -> String {
-    let names: Vec<String> = output
+/// "M: name" of every mission, in input order.
+fn mission_names(output: &MultiOutput) -> Vec<String> {
+    output
         .runs
         .iter()
         .enumerate()
         .map(|(m, r)| format!("{}: {}", m + 1, r.mission_name))
-        .collect();
+        .collect()
+}
+
+fn caption(output: &MultiOutput) -> String {
+    let names = mission_names(output);
     let state = if output.report.merged {
         "merged"
     } else {
@@ -354,12 +359,7 @@ pub fn write_mcap(
     output: &MultiOutput,
     mosaic: Option<&Grid>,
 ) -> Result<()> {
-    let names: Vec<String> = output
-        .runs
-        .iter()
-        .enumerate()
-        .map(|(m, r)| format!("{}: {}", m + 1, r.mission_name))
-        .collect();
+    let names = mission_names(output);
     let default_mounting = SensorMounting::default();
     let mounting = output
         .mountings
@@ -391,24 +391,6 @@ pub fn write_mcap(
     Ok(())
 }
 
-/// The merged mosaic on `/slam/mosaic` (values in `[0, 1]` as bytes).
-fn write_mosaic(w: &mut MissionWriter, t0: f64, grid: &Grid) -> Result<()> {
-    let (x0, y0) = grid.origin_m();
-    let cells: Vec<u8> = grid
-        .values()
-        .iter()
-        .map(|&v| (v.clamp(0.0, 1.0) * 255.0) as u8)
-        .collect();
-    let cells = GridCells {
-        origin: Se2::new(x0, y0, 0.0),
-        column_count: grid.width(),
-        cell_size_m: grid.cell_size_m(),
-        cells: &cells,
-    };
-    w.write_grid("/slam/mosaic", t0, FRAME_WORLD, &cells)?;
-    Ok(())
-}
-
 /// The accepted cross-mission loops on `/slam/loops/cross`, between the
 /// merged poses `all_poses` (per mission).
 fn write_cross_loops(
@@ -424,11 +406,7 @@ fn write_cross_loops(
         .filter_map(|l| {
             let a = all_poses.get(l.from_mission)?.get(l.from_node)?;
             let b = all_poses.get(l.to_mission)?.get(l.to_node)?;
-            Some(LineSegment {
-                from_m: (a.x(), a.y()),
-                to_m: (b.x(), b.y()),
-                rgba: [0.9, 0.2, 0.9, 0.9],
-            })
+            Some(segment(a, b, [0.9, 0.2, 0.9, 0.9]))
         })
         .collect();
     w.write_scene_lines(
@@ -472,11 +450,7 @@ fn write_mission(
         .filter_map(|r| {
             let a = poses.get(usize::try_from(r.from).ok()?)?;
             let b = poses.get(usize::try_from(r.to).ok()?)?;
-            Some(LineSegment {
-                from_m: (a.x(), a.y()),
-                to_m: (b.x(), b.y()),
-                rgba: [0.2, 0.4, 0.9, 0.9],
-            })
+            Some(segment(a, b, [0.2, 0.4, 0.9, 0.9]))
         })
         .collect();
     w.write_scene_lines(
@@ -492,16 +466,7 @@ fn write_mission(
         w.write_frame_transform("/tf", t, &frame, &vehicle, pose)?;
         w.write_pose_in_frame(&format!("{prefix}/slam/pose"), t, &frame, pose)?;
         if let Some(scan) = run.scans.get(k).filter(|s| !s.is_empty()) {
-            let points: Vec<ScanPoint> = scan
-                .points
-                .iter()
-                .zip(&scan.intensities)
-                .map(|(p, &i)| ScanPoint {
-                    x_m: p.x,
-                    y_m: p.y,
-                    intensity: i,
-                })
-                .collect();
+            let points = scan_points(scan);
             w.write_point_cloud(&format!("{prefix}/slam/scan"), t, &frame, pose, &points)?;
         }
         if let Some(image) = run.images.get(k).filter(|i| !i.is_empty()) {

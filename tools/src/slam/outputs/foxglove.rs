@@ -30,6 +30,7 @@ use anyhow::{Context, Result};
 use echofield_datasets::mcap::foxglove::{GridCells, LineSegment, ScanPoint};
 use echofield_datasets::mcap::{CompletedMcap, MissionWriter};
 use echofield_frontend::image::Grid;
+use echofield_frontend::scan::Scan;
 use echofield_frontend::sensors::SensorMounting;
 use echofield_graph::Se2;
 use image::ExtendedColorType;
@@ -124,16 +125,7 @@ fn write_nodes(
         w.write_frame_transform("/tf", t, FRAME_WORLD, FRAME_VEHICLE, &node.optimised)?;
         w.write_pose_in_frame("/slam/pose", t, FRAME_WORLD, &node.optimised)?;
         if let Some(scan) = output.scans.get(k).filter(|s| !s.is_empty()) {
-            let points: Vec<ScanPoint> = scan
-                .points
-                .iter()
-                .zip(&scan.intensities)
-                .map(|(p, &i)| ScanPoint {
-                    x_m: p.x,
-                    y_m: p.y,
-                    intensity: i,
-                })
-                .collect();
+            let points = scan_points(scan);
             w.write_point_cloud("/slam/scan", t, FRAME_WORLD, &node.optimised, &points)?;
         }
         if let Some(png) = pngs.next().and_then(Option::as_ref) {
@@ -179,7 +171,7 @@ fn write_trajectories(
 
 /// `/slam/mosaic` at `t0`: the world-frame mosaic (not empty) as an
 /// occupancy-style grid of intensity levels.
-fn write_mosaic(w: &mut MissionWriter, t0: f64, grid: &Grid) -> Result<()> {
+pub fn write_mosaic(w: &mut MissionWriter, t0: f64, grid: &Grid) -> Result<()> {
     let (x0, y0) = grid.origin_m();
     let cells: Vec<u8> = grid.values().iter().map(|&v| intensity_level(v)).collect();
     let cells = GridCells {
@@ -234,12 +226,7 @@ fn loop_segments(loops: &[LoopRow], accepted: bool, optimised: &[Se2]) -> Vec<Li
                 (false, Some(true)) => REJECTED_OVERLAPPING,
                 (false, _) => REJECTED,
             };
-            let segment = LineSegment {
-                from_m: (a.x(), a.y()),
-                to_m: (b.x(), b.y()),
-                rgba,
-            };
-            Some((rgba == FALSE_LOOP, segment))
+            Some((rgba == FALSE_LOOP, segment(a, b, rgba)))
         })
         .collect();
     segments.sort_by_key(|(on_top, _)| *on_top);
@@ -249,6 +236,29 @@ fn loop_segments(loops: &[LoopRow], accepted: bool, optimised: &[Se2]) -> Vec<Li
 /// A normalised intensity (0-1, clamped) as an 8-bit level.
 fn intensity_level(v: f32) -> u8 {
     (v.clamp(0.0, 1.0) * 255.0) as u8
+}
+
+/// A scan's points (scan frame) with their intensities, as a point cloud
+/// message takes them.
+pub fn scan_points(scan: &Scan) -> Vec<ScanPoint> {
+    scan.points
+        .iter()
+        .zip(&scan.intensities)
+        .map(|(p, &i)| ScanPoint {
+            x_m: p.x,
+            y_m: p.y,
+            intensity: i,
+        })
+        .collect()
+}
+
+/// The line from `a` to `b` (positions only) in colour `rgba`.
+pub fn segment(a: &Se2, b: &Se2, rgba: [f32; 4]) -> LineSegment {
+    LineSegment {
+        from_m: (a.x(), a.y()),
+        to_m: (b.x(), b.y()),
+        rgba,
+    }
 }
 
 /// `I_k` (its search raster,
