@@ -180,20 +180,31 @@ mod tests {
         (field, scan)
     }
 
+    /// The problem of `points` on `field` with a compass heading
+    /// `heading_rad` (sigma 0.26 rad) and at most `max_shift_m` of move.
+    fn test_problem<'a>(
+        field: &'a LikelihoodField,
+        points: &'a [Point2<f64>],
+        heading_rad: f64,
+        max_shift_m: f64,
+    ) -> RefineProblem<'a> {
+        RefineProblem {
+            field,
+            points,
+            stride: 1,
+            unknown: 0.1,
+            gain: 300.0,
+            heading_rad,
+            heading_sigma_rad: 0.26,
+            max_shift_m,
+        }
+    }
+
     #[test]
     fn an_estimate_off_by_a_fraction_of_a_metre_moves_onto_the_true_pose() {
         let truth = Se2::new(0.4, -0.7, 0.2);
         let (field, scan) = field_and_scan(&truth);
-        let problem = RefineProblem {
-            field: &field,
-            points: &scan,
-            stride: 1,
-            unknown: 0.1,
-            gain: 300.0,
-            heading_rad: 0.2,
-            heading_sigma_rad: 0.26,
-            max_shift_m: 1.0,
-        };
+        let problem = test_problem(&field, scan.as_slice(), 0.2, 1.0);
         let start = Se2::new(0.6, -0.55, 0.23);
         let refined = problem.refine(&start);
         let before = (start.translation() - truth.translation()).norm();
@@ -210,16 +221,7 @@ mod tests {
     fn the_result_stays_within_the_allowed_shift() {
         let truth = Se2::new(0.0, 0.0, 0.0);
         let (field, scan) = field_and_scan(&truth);
-        let problem = RefineProblem {
-            field: &field,
-            points: &scan,
-            stride: 1,
-            unknown: 0.1,
-            gain: 300.0,
-            heading_rad: 0.0,
-            heading_sigma_rad: 0.26,
-            max_shift_m: 0.2,
-        };
+        let problem = test_problem(&field, scan.as_slice(), 0.0, 0.2);
         let start = Se2::new(0.5, 0.0, 0.0);
         let refined = problem.refine(&start);
         let shift = (refined.translation() - start.translation()).norm();
@@ -231,16 +233,7 @@ mod tests {
     #[test]
     fn without_points_the_start_is_returned() {
         let (field, _) = field_and_scan(&Se2::identity());
-        let problem = RefineProblem {
-            field: &field,
-            points: &[],
-            stride: 1,
-            unknown: 0.1,
-            gain: 300.0,
-            heading_rad: 0.0,
-            heading_sigma_rad: 0.26,
-            max_shift_m: 1.0,
-        };
+        let problem = test_problem(&field, &[], 0.0, 1.0);
         let start = Se2::new(1.0, 2.0, 0.0);
         assert_eq!(problem.refine(&start), start);
     }
