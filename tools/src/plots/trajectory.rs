@@ -103,10 +103,14 @@ pub fn trajectory_png(tracks: &[Track], caption: &str, size_px: (u32, u32)) -> R
             } else {
                 chart.draw_series(LineSeries::new(points, style))
             };
-            series
-                .map_err(plot_error)?
-                .label(track.label.clone())
-                .legend(legend_line(colour));
+            let series = series.map_err(plot_error)?;
+            // A track without a label has no legend entry (e.g. the
+            // second of several tracks of one kind).
+            if !track.label.is_empty() {
+                series
+                    .label(track.label.clone())
+                    .legend(legend_line(colour));
+            }
             chart
                 .draw_series(std::iter::once(Circle::new(
                     track.points[0],

@@ -24,7 +24,9 @@ use crate::eval::align_se2;
 use crate::output::write_atomic;
 use crate::plots::trajectory::{GROUND_TRUTH, OPTIMISED, Track, trajectory_png};
 use crate::slam::outputs::foxglove::{FRAME_WORLD, image_png, scan_points, segment, write_mosaic};
-use crate::slam::outputs::mosaic::{MosaicCanvas, MosaicConfig, mosaic_png, placeable, world_file};
+use crate::slam::outputs::mosaic::{
+    MosaicCanvas, MosaicConfig, mosaic_png_tracks, placeable, world_file,
+};
 use anyhow::{Context, Result};
 use echofield_datasets::mcap::MissionWriter;
 use echofield_datasets::mcap::foxglove::LineSegment;
@@ -143,14 +145,14 @@ fn write_mission_tum(dir: &Path, output: &MultiOutput, m: usize) -> Result<()> {
 
 /// `mosaic.png` (with the merged missions' tracks) and its world file.
 fn write_mosaic_png(dir: &Path, output: &MultiOutput, grid: &Grid) -> Result<()> {
-    let track: Vec<(f64, f64)> = output
+    let tracks: Vec<Vec<(f64, f64)>> = output
         .order
         .iter()
         .filter(|&&m| in_map(output, m))
-        .flat_map(|&m| output.poses(m))
-        .map(|p| (p.x(), p.y()))
+        .map(|&m| output.poses(m).iter().map(|p| (p.x(), p.y())).collect())
         .collect();
-    let png = mosaic_png(grid, &track)?;
+    let tracks: Vec<&[(f64, f64)]> = tracks.iter().map(Vec::as_slice).collect();
+    let png = mosaic_png_tracks(grid, &tracks)?;
     write_atomic(&dir.join("mosaic.png"), |w| Ok(w.write_all(&png)?))?;
     write_atomic(&dir.join("mosaic.pgw"), |w| {
         Ok(w.write_all(world_file(grid).as_bytes())?)
@@ -258,11 +260,14 @@ fn tracks(output: &MultiOutput) -> Vec<Track> {
             m + 1,
             if merged { "(merged)" } else { "(own frame)" }
         );
+        // Earlier missions are drawn wider, so that a later mission on the
+        // same route does not hide them.
+        let width_px = 2 + 2 * (output.runs.len() - 1 - m).min(3) as u32;
         tracks.push(Track::from_poses(
             &label,
             &poses,
             COLOURS[m % COLOURS.len()],
-            2,
+            width_px,
         ));
         if merged {
             for (n, pose) in run.nodes.iter().zip(&poses) {
@@ -284,8 +289,13 @@ fn tracks(output: &MultiOutput) -> Vec<Track> {
                 .iter()
                 .filter_map(|n| n.ground_truth.map(|g| map_from_truth.compose(&g)))
                 .collect();
-            let mut t =
-                Track::from_poses(&format!("ground truth {}", m + 1), &truth, GROUND_TRUTH, 2);
+            // One legend entry for the ground truth of every mission.
+            let label = if tracks.iter().any(|t| t.colour == GROUND_TRUTH) {
+                ""
+            } else {
+                "ground truth (SE(2)-aligned)"
+            };
+            let mut t = Track::from_poses(label, &truth, GROUND_TRUTH, 2);
             t.dashed = true;
             tracks.push(t);
         }

@@ -356,6 +356,12 @@ const TRACK: [u8; 3] = [0, 220, 255];
 /// The mosaic as an RGB PNG, north up, with `trajectory` (world metres)
 /// drawn over it.
 pub fn mosaic_png(grid: &Grid, trajectory: &[(f64, f64)]) -> Result<Vec<u8>> {
+    mosaic_png_tracks(grid, &[trajectory])
+}
+
+/// [`mosaic_png`] with several trajectories, each drawn on its own (no
+/// line joins the end of one to the start of the next).
+pub fn mosaic_png_tracks(grid: &Grid, trajectories: &[&[(f64, f64)]]) -> Result<Vec<u8>> {
     let (w, h) = (grid.width(), grid.height());
     // A lookup table: 256 levels are plenty for an 8-bit picture.
     let table: Vec<[u8; 3]> = (0..256).map(|i| heat(i as f32 / 255.0)).collect();
@@ -371,7 +377,7 @@ pub fn mosaic_png(grid: &Grid, trajectory: &[(f64, f64)]) -> Result<Vec<u8>> {
     let (ox, oy) = grid.origin_m();
     let cell = grid.cell_size_m();
     let to_px = |(x, y): (f64, f64)| ((x - ox) / cell, h as f64 - (y - oy) / cell);
-    for pair in trajectory.windows(2) {
+    for pair in trajectories.iter().flat_map(|t| t.windows(2)) {
         draw_line(&mut rgb, w, h, to_px(pair[0]), to_px(pair[1]), TRACK);
     }
     let (wp, hp) = (u32::try_from(w)?, u32::try_from(h)?);
