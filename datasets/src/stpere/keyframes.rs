@@ -185,13 +185,19 @@ struct Span {
     end_s: f64,
 }
 
+/// How far a rotation may begin before the previous one ends, s:
+/// consecutive rotations share their boundary stamp, and the slack
+/// accepts an overlap from rounding it.
+const OVERLAP_SLACK_S: f64 = 0.01;
+
 /// The CSV's columns, in order.
 const COLUMNS: [&str; 3] = ["keyFrame", "keyFrameBeginning", "keyFrameEnd"];
 
 /// Reads the rotations of `keyFrameTimeStamps.csv`. Errors name the line
 /// and column: a header other than [`COLUMNS`], a value that is not a
 /// rotation number or a time, a rotation that ends before it begins, does
-/// not follow the one before or begins before it ends (10 ms of slack).
+/// not follow the one before or begins more than [`OVERLAP_SLACK_S`]
+/// before it ends.
 fn read_spans(path: &Path) -> Result<Vec<Span>, DatasetError> {
     let file = std::fs::File::open(path).map_err(|e| DatasetError::io(path, e))?;
     let mut reader = csv::ReaderBuilder::new()
@@ -262,7 +268,7 @@ fn parse_span(
                 format!("{keyframe} does not follow {}", prev.keyframe),
             ));
         }
-        if begin_s < prev.end_s - 0.01 {
+        if begin_s < prev.end_s - OVERLAP_SLACK_S {
             return Err(bad(
                 1,
                 format!(
