@@ -99,11 +99,13 @@ fn gps_fixes_are_off_by_default_and_seeded_noisy_truth_when_on() {
     use echofield_datasets::sim::GpsSimConfig;
     let plain = simulate_mission(&Scenario::named("tank").unwrap(), 5).unwrap();
     assert!(plain.position_fixes.is_empty());
-    let mut config = SimConfig::default();
-    config.gps = GpsSimConfig {
-        period_s: 1.0,
-        noise_std_m: 1.5,
-        surface_s: 40.0,
+    let config = SimConfig {
+        gps: GpsSimConfig {
+            period_s: 1.0,
+            noise_std_m: 1.5,
+            surface_s: 40.0,
+        },
+        ..SimConfig::default()
     };
     let scenario = Scenario::build("tank", config, None).unwrap();
     let with = simulate_mission(&scenario, 5).unwrap();
