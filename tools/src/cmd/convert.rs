@@ -73,8 +73,8 @@ Examples:
 Frames: world x east / y north about the first DGPS fix; vehicle x forward,
 y port; yaw counter-clockwise from east (see datasets/stpere-marina/README.md).
 The DGPS becomes the ground truth only, never the /position/fix channel: as
-the prior of a merge (`echofield run A B`) it would make the merged error
-against it meaningless.";
+the prior of a merge of missions (run with several missions) it would make
+the merged error against it meaningless.";
 
 const PING360_EXAMPLES: &str = "\
 Examples:
