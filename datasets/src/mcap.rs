@@ -17,6 +17,7 @@
 //! | `/dvl/velocity`      | `echofield.DvlVelocity`    | [`DvlVelocity`]    |
 //! | `/attitude`          | `echofield.Attitude`       | [`Attitude`]       |
 //! | `/ground_truth/pose` | `echofield.GroundTruthPose`| [`GroundTruthPose`]|
+//! | `/position/fix`      | `echofield.PositionFix`    | [`PositionFix`]    |
 //!
 //! # ROS recordings
 //!
@@ -86,7 +87,7 @@ pub use writer::{CompletedMcap, MissionWriter};
 use crate::DatasetError;
 use echofield_frontend::sensors::Mission;
 #[cfg(doc)]
-use echofield_frontend::sensors::{Attitude, DvlVelocity, GroundTruthPose, SonarBeam};
+use echofield_frontend::sensors::{Attitude, DvlVelocity, GroundTruthPose, PositionFix, SonarBeam};
 use std::path::Path;
 
 /// Topic of the sonar beams.
@@ -97,6 +98,8 @@ pub const TOPIC_DVL: &str = "/dvl/velocity";
 pub const TOPIC_ATTITUDE: &str = "/attitude";
 /// Topic of the ground-truth poses.
 pub const TOPIC_GROUND_TRUTH: &str = "/ground_truth/pose";
+/// Topic of the position fixes (optional; a prior for merging missions).
+pub const TOPIC_POSITION_FIX: &str = "/position/fix";
 /// Name of the Metadata record that holds the mission name and mounting.
 pub const METADATA_NAME: &str = "echofield.mission";
 /// Value of the `format_version` key of that record.
@@ -118,7 +121,8 @@ pub fn write_mission(path: &Path, mission: &Mission) -> Result<(), DatasetError>
         mission.beams.len()
             + mission.dvl.len()
             + mission.attitude.len()
-            + mission.ground_truth.len(),
+            + mission.ground_truth.len()
+            + mission.position_fixes.len(),
     );
     order.extend(
         mission
@@ -148,13 +152,21 @@ pub fn write_mission(path: &Path, mission: &Mission) -> Result<(), DatasetError>
             .enumerate()
             .map(|(i, r)| (r.stamp_s, 3, i)),
     );
+    order.extend(
+        mission
+            .position_fixes
+            .iter()
+            .enumerate()
+            .map(|(i, r)| (r.stamp_s, 4, i)),
+    );
     order.sort_by(|a, b| a.0.total_cmp(&b.0));
     for (_, stream, i) in order {
         match stream {
             0 => writer.write_beam(&mission.beams[i])?,
             1 => writer.write_dvl(&mission.dvl[i])?,
             2 => writer.write_attitude(&mission.attitude[i])?,
-            _ => writer.write_ground_truth(&mission.ground_truth[i])?,
+            3 => writer.write_ground_truth(&mission.ground_truth[i])?,
+            _ => writer.write_position_fix(&mission.position_fixes[i])?,
         }
     }
     writer.finish()

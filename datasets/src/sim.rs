@@ -12,7 +12,9 @@
 //!   fish blobs, noise, 0-255 quantisation, timing jitter;
 //! - DVL and attitude ([`navigation`]): noise, scale error, dropouts and
 //!   gaps; a constant heading bias;
-//! - ground truth at `ground_truth_rate_hz`.
+//! - ground truth at `ground_truth_rate_hz`;
+//! - position fixes at the surface ([`gps`]), only when `[gps] period_s`
+//!   is set.
 //!
 //! Built-in scenarios ([`Scenario::named`]): `marina` (the demo: 120 m x
 //! 240 m, ~40 min with revisits), `tank` (20 m x 14 m, ~2.5 min, for tests),
@@ -36,6 +38,7 @@
 mod config;
 mod error;
 pub mod geometry;
+pub mod gps;
 mod mission;
 pub mod navigation;
 pub mod point_sets;
@@ -49,6 +52,7 @@ mod vehicle;
 pub use config::SimConfig;
 pub use error::SimError;
 pub use geometry::{Environment, EnvironmentBuilder, Material, RayHit, Segment};
+pub use gps::GpsSimConfig;
 pub use mission::{simulate_mission, stream_rng};
 pub use navigation::{DvlSimConfig, HeadingSimConfig};
 pub use scenario::Scenario;

@@ -172,6 +172,11 @@ pub fn read_stpere_dir(dir: &Path) -> Result<StPereLogs, DatasetError> {
         dvl: dvl.samples,
         attitude: mti.samples,
         ground_truth,
+        // The DGPS is the ground truth of every evaluation on these logs:
+        // as position fixes it would be the prior of a merge of missions,
+        // and the merged error against it would measure nothing. A log of
+        // this vehicle has no other position source.
+        position_fixes: Vec::new(),
         warnings: Default::default(),
     };
     Ok(StPereLogs {

@@ -473,3 +473,64 @@ fn zstd_frame_cut_inside_a_consistent_chunk_record_is_an_error() {
         );
     }
 }
+
+/// `/position/fix`: a bad value is an error naming the file, the message
+/// and the field; fixes out of time order are re-sorted with a warning
+/// that names the stream and the first of them.
+#[test]
+fn bad_position_fixes_are_named_and_late_ones_resorted() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("fixes.mcap");
+    let fix = |stamp: f64, extra: &str| {
+        format!(r#"{{"stamp_s":{stamp},"x_m":10.0,"y_m":-4.0,"std_m":2.0{extra}}}"#)
+    };
+    let schema = json::POSITION_FIX_SCHEMA_NAME;
+    for (text, field) in [
+        (
+            fix(2.0, "").replace("\"std_m\":2.0", "\"std_m\":null"),
+            "std_m",
+        ),
+        (
+            fix(2.0, "").replace("\"std_m\":2.0", "\"std_m\":-1"),
+            "std_m",
+        ),
+        (fix(2.0, "").replace("\"x_m\":10.0", "\"x_m\":5e7"), "x_m"),
+        (fix(2.0, ",\"z_m\":1"), "z_m"),
+    ] {
+        write_raw(
+            &path,
+            &[
+                json_msg("/sonar/beam", json::BEAM_SCHEMA_NAME, 1, GOOD_BEAM),
+                json_msg("/position/fix", schema, 2, &text),
+            ],
+        );
+        let err = read_mission(&path).unwrap_err();
+        assert!(err.to_string().contains("fixes.mcap"), "{err}");
+        let (record, f, message) = parse_error(err);
+        assert_eq!(record, "message 1 (topic `/position/fix`)", "{text}");
+        assert_eq!(f, field, "{text}: {message}");
+    }
+
+    write_raw(
+        &path,
+        &[
+            json_msg("/sonar/beam", json::BEAM_SCHEMA_NAME, 1, GOOD_BEAM),
+            json_msg("/position/fix", schema, 2, &fix(5.0, "")),
+            json_msg("/position/fix", schema, 3, &fix(7.0, "")),
+            json_msg("/position/fix", schema, 4, &fix(6.0, "")),
+        ],
+    );
+    let mission = read_mission(&path).unwrap();
+    let stamps: Vec<f64> = mission.position_fixes.iter().map(|f| f.stamp_s).collect();
+    assert_eq!(stamps, [5.0, 6.0, 7.0]);
+    let warning = mission
+        .warnings
+        .of(echofield_frontend::warnings::WarningKind::StampsResorted)
+        .unwrap();
+    assert_eq!(warning.count, 1);
+    assert!(warning.message.contains("position fixes"), "{warning:?}");
+    assert_eq!(
+        warning.first_record.as_deref(),
+        Some("position fixes record 2")
+    );
+}

@@ -322,3 +322,79 @@ fn a_completed_file_replaces_the_old_one_only_when_persisted() {
     writer().finish().unwrap();
     assert_eq!(std::fs::read(&path).unwrap(), persisted);
 }
+
+/// `/position/fix`: fixes written with a mission read back bit for bit, on
+/// their own documented channel, and a NaN or a non-positive standard
+/// deviation is refused before anything is written, naming the record and
+/// the field.
+#[test]
+fn position_fixes_round_trip_on_their_channel() {
+    use echofield_frontend::sensors::PositionFix;
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("fixes.mcap");
+    let mut mission = random_mission(300, 50, 3);
+    let t0 = mission.beams[0].stamp_s;
+    // UTM-sized coordinates, awkward decimals, one fix per 2 s.
+    mission.position_fixes = (0..10)
+        .map(|k| PositionFix {
+            stamp_s: t0 + 2.0 * k as f64 + 0.1,
+            x_m: 482_310.123_456_789 + k as f64 / 3.0,
+            y_m: 4_650_120.987_654_321 - k as f64 / 7.0,
+            std_m: 1.5 + k as f64 * 0.01,
+        })
+        .collect();
+    write_mission(&path, &mission).unwrap();
+    let mut expected = mission.clone();
+    expected
+        .beams
+        .sort_by(|a, b| a.stamp_s.total_cmp(&b.stamp_s));
+    let read = read_mission(&path).unwrap();
+    assert_same_mission(&read, &expected);
+    assert_eq!(read.position_fixes, mission.position_fixes);
+    assert!(read.warnings.is_empty(), "{:?}", read.warnings);
+    // The channel, its schema and a message as a third-party tool sees them.
+    let fixes: Vec<_> = raw_messages(&path)
+        .into_iter()
+        .filter(|m| m.0 == "/position/fix")
+        .collect();
+    assert_eq!(fixes.len(), 10);
+    let (_, schema, schema_encoding, encoding, log_time, json) = &fixes[3];
+    assert_eq!(
+        (schema.as_str(), schema_encoding.as_str(), encoding.as_str()),
+        ("echofield.PositionFix", "jsonschema", "json")
+    );
+    assert_eq!(
+        *log_time,
+        (mission.position_fixes[3].stamp_s * 1e9).round() as u64
+    );
+    assert_eq!(json["std_m"], 1.53);
+    // A mission without fixes has no such channel (files written before
+    // the channel existed are unchanged).
+    let plain = dir.path().join("plain.mcap");
+    write_mission(&plain, &random_mission(50, 10, 3)).unwrap();
+    assert!(raw_messages(&plain).iter().all(|m| m.0 != "/position/fix"));
+
+    for (k, field, breaks) in [
+        (
+            4,
+            "x_m",
+            Box::new(|f: &mut PositionFix| f.x_m = f64::NAN) as Box<dyn Fn(&mut PositionFix)>,
+        ),
+        (7, "std_m", Box::new(|f: &mut PositionFix| f.std_m = 0.0)),
+        (2, "y_m", Box::new(|f: &mut PositionFix| f.y_m = 1e9)),
+    ] {
+        let mut bad = mission.clone();
+        breaks(&mut bad.position_fixes[k]);
+        let out = dir.path().join("bad.mcap");
+        match write_mission(&out, &bad).unwrap_err() {
+            echofield_datasets::DatasetError::Parse {
+                record, field: f, ..
+            } => {
+                assert_eq!(record, format!("position_fix {k}"));
+                assert_eq!(f, field);
+            }
+            other => panic!("expected a Parse error, got {other}"),
+        }
+        assert!(!out.exists());
+    }
+}

@@ -89,3 +89,49 @@ fn unknown_scenario_and_bad_config_are_errors() {
     let err = Scenario::build("stpere", SimConfig::default(), Some(missing)).unwrap_err();
     assert!(err.to_string().contains("/nonexistent/stpere"), "{err}");
 }
+
+/// `[gps]`: off by default (no fixes, the mission as before); on, fixes
+/// at the configured period within `surface_s` of the start and the end,
+/// each off the ground truth by the configured noise, from a random
+/// stream of their own (every other stream unchanged), seeded.
+#[test]
+fn gps_fixes_are_off_by_default_and_seeded_noisy_truth_when_on() {
+    use echofield_datasets::sim::GpsSimConfig;
+    let plain = simulate_mission(&Scenario::named("tank").unwrap(), 5).unwrap();
+    assert!(plain.position_fixes.is_empty());
+    let config = SimConfig {
+        gps: GpsSimConfig {
+            period_s: 1.0,
+            noise_std_m: 1.5,
+            surface_s: 40.0,
+        },
+        ..SimConfig::default()
+    };
+    let scenario = Scenario::build("tank", config, None).unwrap();
+    let with = simulate_mission(&scenario, 5).unwrap();
+    assert_eq!(with, simulate_mission(&scenario, 5).unwrap());
+    let mut without_fixes = with.clone();
+    without_fixes.position_fixes.clear();
+    assert!(without_fixes == plain, "the other streams changed");
+
+    let truth = scenario.ground_truth();
+    let (start, end) = (truth.start_s(), truth.end_s());
+    let fixes = &with.position_fixes;
+    // 40 or 41 stamps in each window of 40 s at 1 s (the windows do not
+    // overlap on the tank's mission, which is longer than 80 s).
+    assert!(end - start > 80.0);
+    assert!((80..=82).contains(&fixes.len()), "{} fixes", fixes.len());
+    let mut squares = 0.0;
+    for f in fixes {
+        assert!(f.stamp_s - start <= 40.0 || end - f.stamp_s <= 40.0);
+        assert_eq!(f.std_m, 1.5);
+        let p = truth.pose_at(f.stamp_s);
+        squares += (f.x_m - p.x()).powi(2) + (f.y_m - p.y()).powi(2);
+    }
+    // Per-axis RMS of 164 draws of N(0, 1.5²): within 20 % of 1.5 m
+    // (about 2.6 standard errors).
+    let rms = (squares / (2.0 * fixes.len() as f64)).sqrt();
+    assert!((rms - 1.5).abs() < 0.3, "per-axis RMS {rms} m");
+    let other_seed = simulate_mission(&scenario, 6).unwrap();
+    assert_ne!(other_seed.position_fixes, with.position_fixes);
+}

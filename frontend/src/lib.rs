@@ -31,4 +31,6 @@ pub mod warnings;
 
 pub use error::{FrontendError, StageError};
 
-pub use sensors::{Attitude, DvlVelocity, GroundTruthPose, Mission, SensorMounting, SonarBeam};
+pub use sensors::{
+    Attitude, DvlVelocity, GroundTruthPose, Mission, PositionFix, SensorMounting, SonarBeam,
+};

@@ -83,6 +83,23 @@ pub struct GroundTruthPose {
     pub world_from_vehicle: Se2,
 }
 
+/// A position fix of the vehicle (GPS at the surface, USBL, a surveyed
+/// mark): where the vehicle was, in a plane common to every mission of a
+/// site, with its uncertainty. Used as the prior of a merge of missions
+/// (`echofield run A B`), never as ground truth.
+///
+/// `x_m`, `y_m`: east and north, metres, in a projected plane that every
+/// mission to be merged uses alike (UTM easting/northing, or a local
+/// tangent plane about an agreed origin); not necessarily the mission's
+/// world frame. `std_m`: standard deviation of each axis, metres (> 0).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PositionFix {
+    pub stamp_s: f64,
+    pub x_m: f64,
+    pub y_m: f64,
+    pub std_m: f64,
+}
+
 /// Which way a sonar head's transducer angle counts, seen from above (the
 /// vehicle's z axis up).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -233,6 +250,9 @@ pub struct Mission {
     pub attitude: Vec<Attitude>,
     /// Empty when the mission has no ground truth.
     pub ground_truth: Vec<GroundTruthPose>,
+    /// Empty when the mission has no position fixes ([`PositionFix`]).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub position_fixes: Vec<PositionFix>,
     /// What the reader repaired in the log (records re-sorted, a mounting
     /// assumed, implausible samples dropped), for the run's report.
     #[serde(default, skip_serializing_if = "Warnings::is_empty")]

@@ -459,7 +459,10 @@ fn position_fixes_bound_the_search_and_a_wrong_prior_is_not_trusted() {
 #[test]
 fn the_merged_folder_holds_the_graph_the_mosaic_and_the_mcap() {
     let (a, b) = (marina_seed_1().clone(), marina_other_route_run().clone());
-    let out = combine(vec![a, b], &SlamConfig::default()).unwrap();
+    let mut out = combine(vec![a, b], &SlamConfig::default()).unwrap();
+    // As `run_missions` sets them: the missions' mountings.
+    let mounting = SimConfig::default().mounting;
+    out.mountings = vec![Some(mounting.clone()), Some(mounting.clone())];
     assert!(out.report.merged);
     let dir = tempfile::tempdir().unwrap();
     write_files(dir.path(), &out).unwrap();
@@ -486,10 +489,17 @@ fn the_merged_folder_holds_the_graph_the_mosaic_and_the_mcap() {
     // The MCAP: one set of topics per mission, the mosaic, the cross loops.
     let bytes = std::fs::read(dir.path().join("mission.mcap")).unwrap();
     let mut count = std::collections::BTreeMap::<String, usize>::new();
+    let mut json = std::collections::BTreeMap::<String, Vec<serde_json::Value>>::new();
     for message in mcap::MessageStream::new(&bytes).unwrap() {
-        *count
-            .entry(message.unwrap().channel.topic.clone())
-            .or_default() += 1;
+        let message = message.unwrap();
+        let topic = message.channel.topic.clone();
+        *count.entry(topic.clone()).or_default() += 1;
+        if topic.contains("/dead_reckoning/") || topic.contains("/ground_truth/") || topic == "/tf"
+        {
+            json.entry(topic)
+                .or_default()
+                .push(serde_json::from_slice(&message.data).unwrap());
+        }
     }
     eprintln!("{count:?}");
     for m in 0..2 {
@@ -501,8 +511,41 @@ fn the_merged_folder_holds_the_graph_the_mosaic_and_the_mcap() {
     }
     assert_eq!(count["/slam/mosaic"], 1);
     assert_eq!(count["/slam/loops/cross"], 1);
+    // Per node `world` -> `vehicle_M`, and per mission `vehicle_M` ->
+    // `sonar_M` (its mounting).
     assert_eq!(
         count["/tf"],
-        out.runs[0].nodes.len() + out.runs[1].nodes.len()
+        out.runs[0].nodes.len() + out.runs[1].nodes.len() + 2
     );
+    // Each mission's dead reckoning (one pose per node, in the map frame:
+    // near its merged poses, within the dead reckoning's drift) and
+    // ground truth (its whole trajectory, fitted onto the merged nodes).
+    for m in 0..2 {
+        let run = &out.runs[m];
+        let dr = &json[&format!("/mission_{}/dead_reckoning/trajectory", m + 1)];
+        assert_eq!(dr.len(), 1);
+        assert_eq!(dr[0]["frame_id"], "world");
+        let poses = dr[0]["poses"].as_array().unwrap();
+        assert_eq!(poses.len(), run.nodes.len());
+        let merged = out.poses(m);
+        let first = &poses[0]["position"];
+        let gap = (first["x"].as_f64().unwrap() - merged[0].x())
+            .hypot(first["y"].as_f64().unwrap() - merged[0].y());
+        assert!(gap < 5.0, "mission {}: first DR pose {gap} m off", m + 1);
+        let gt = &json[&format!("/mission_{}/ground_truth/trajectory", m + 1)];
+        assert_eq!(gt.len(), 1);
+        assert_eq!(
+            gt[0]["poses"].as_array().unwrap().len(),
+            run.ground_truth.as_ref().unwrap().len()
+        );
+        let sonar = json["/tf"]
+            .iter()
+            .find(|t| t["child_frame_id"] == format!("sonar_{}", m + 1))
+            .unwrap();
+        assert_eq!(sonar["parent_frame_id"], format!("vehicle_{}", m + 1));
+        assert_eq!(
+            sonar["translation"]["x"].as_f64().unwrap(),
+            mounting.vehicle_from_sonar.x()
+        );
+    }
 }

@@ -389,3 +389,117 @@ fn two_missions_write_one_folder_with_a_mission_column() {
     let magic = b"\x89MCAP0\r\n";
     assert!(bytes.starts_with(magic) && bytes.ends_with(magic));
 }
+
+/// `echofield simulate` of `scenario` with `seed` and the simulator config
+/// `config` (TOML) into `dir/NAME.mcap`.
+fn simulated_with(dir: &Path, scenario: &str, seed: &str, config: &Path, name: &str) -> PathBuf {
+    let mission = dir.join(format!("{name}.mcap"));
+    let simulate = Command::new(env!("CARGO_BIN_EXE_echofield"))
+        .args([
+            "simulate",
+            "--scenario",
+            scenario,
+            "--seed",
+            seed,
+            "--config",
+        ])
+        .arg(config)
+        .arg("--output")
+        .arg(&mission)
+        .output()
+        .unwrap();
+    assert!(simulate.status.success(), "{simulate:?}");
+    mission
+}
+
+/// `echofield run A B --output OUT`: its report and its standard output.
+fn run_two(a: &Path, b: &Path, out: &Path) -> (serde_json::Value, String) {
+    let run = Command::new(env!("CARGO_BIN_EXE_echofield"))
+        .arg("run")
+        .args([a, b])
+        .arg("--output")
+        .arg(out)
+        .arg("--allow-suspect")
+        .output()
+        .unwrap();
+    assert!(run.status.success(), "{run:?}");
+    let report =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    (report, String::from_utf8_lossy(&run.stdout).into_owned())
+}
+
+/// `echofield run A B` takes the position fixes of the missions' MCAP
+/// (`/position/fix`, written by the simulator's `[gps]`: noisy surface
+/// fixes in the simulated world both missions share) as the placement
+/// prior: with right fixes the prior is used and confirmed by the sonar;
+/// with one mission's fixes shifted 30 m (far beyond their sigma) the
+/// prior is rejected, said so in the summary, the report and a warning,
+/// and the mission is still merged from its scans.
+#[test]
+fn position_fixes_in_the_missions_are_the_merge_prior_and_wrong_ones_are_reported() {
+    use echofield_datasets::mcap::{read_mission, write_mission};
+    let dir = tempfile::tempdir().unwrap();
+    let config = dir.path().join("gps.toml");
+    std::fs::write(
+        &config,
+        "[gps]\nperiod_s = 5.0\nnoise_std_m = 1.5\nsurface_s = 300.0\n",
+    )
+    .unwrap();
+    let a = simulated_with(dir.path(), "marina", "1", &config, "a");
+    let b = simulated_with(dir.path(), "marina", "2", &config, "b");
+    let fixes_of = |path: &Path| read_mission(path).unwrap().position_fixes;
+    assert!(fixes_of(&a).len() >= 100 && fixes_of(&b).len() >= 100);
+
+    let (report, stdout) = run_two(&a, &b, &dir.path().join("right"));
+    eprintln!("{stdout}");
+    assert_eq!(report["merged"], true, "{report}");
+    let anchor = report["anchor"].as_u64().unwrap() as usize;
+    let other = 3 - anchor;
+    let mission = |report: &serde_json::Value, m: usize| report["missions"][m - 1].clone();
+    for m in [anchor, other] {
+        assert_eq!(
+            mission(&report, m)["position_fixes"].as_u64().unwrap() as usize,
+            fixes_of(if m == 1 { &a } else { &b }).len()
+        );
+    }
+    assert_eq!(mission(&report, anchor)["fix_prior"], "map");
+    assert_eq!(
+        mission(&report, other)["fix_prior"],
+        "confirmed",
+        "{report}"
+    );
+    let check = &mission(&report, other)["placement"]["prior"];
+    assert_eq!(check["bounded"], true, "{check}");
+    assert!(stdout.contains("confirmed by the sonar"), "{stdout}");
+    assert_eq!(report["warnings"].as_array().unwrap().len(), 0, "{report}");
+
+    // The other mission's fixes 30 m east of where it was.
+    let other_path = if other == 1 { &a } else { &b };
+    let mut shifted = read_mission(other_path).unwrap();
+    for f in &mut shifted.position_fixes {
+        f.x_m += 30.0;
+    }
+    let wrong = dir.path().join("wrong.mcap");
+    write_mission(&wrong, &shifted).unwrap();
+    let (first, second) = if other == 1 {
+        (&wrong, &b)
+    } else {
+        (&a, &wrong)
+    };
+    let (report, stdout) = run_two(first, second, &dir.path().join("wrong"));
+    eprintln!("{stdout}");
+    assert_eq!(mission(&report, other)["fix_prior"], "rejected", "{report}");
+    let check = &mission(&report, other)["placement"]["prior"];
+    assert_eq!(check["consistent"], false, "{check}");
+    assert!(check["offset_m"].as_f64().unwrap() > 20.0, "{check}");
+    assert!(stdout.contains("REJECTED"), "{stdout}");
+    let warnings = report["warnings"].as_array().unwrap();
+    assert!(
+        warnings
+            .iter()
+            .any(|w| w.as_str().unwrap().contains("not trusted")),
+        "{warnings:?}"
+    );
+    assert_eq!(report["merged"], true, "{report}");
+    assert_eq!(mission(&report, other)["merged"], true, "{report}");
+}

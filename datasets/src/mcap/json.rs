@@ -12,7 +12,7 @@
 use super::validate::{self, FieldError};
 use base64::Engine as _;
 use base64::engine::general_purpose::STANDARD as BASE64;
-use echofield_frontend::sensors::{Attitude, DvlVelocity, GroundTruthPose, SonarBeam};
+use echofield_frontend::sensors::{Attitude, DvlVelocity, GroundTruthPose, PositionFix, SonarBeam};
 use echofield_graph::Se2;
 use nalgebra::{Matrix3, Vector3};
 use serde::{Deserialize, Serialize, de::DeserializeOwned};
@@ -27,6 +27,7 @@ pub const BEAM_SCHEMA_NAME: &str = "echofield.SonarBeam";
 pub const DVL_SCHEMA_NAME: &str = "echofield.DvlVelocity";
 pub const ATTITUDE_SCHEMA_NAME: &str = "echofield.Attitude";
 pub const GROUND_TRUTH_SCHEMA_NAME: &str = "echofield.GroundTruthPose";
+pub const POSITION_FIX_SCHEMA_NAME: &str = "echofield.PositionFix";
 
 const STAMP: &str = r#""stamp_s": {
       "type": "number",
@@ -154,6 +155,27 @@ pub fn ground_truth_schema() -> String {
     )
 }
 
+/// JSON Schema of `/position/fix`.
+pub fn position_fix_schema() -> String {
+    format!(
+        r#"{{
+  "$schema": "https://json-schema.org/draft/2020-12/schema",
+  "title": "{POSITION_FIX_SCHEMA_NAME}",
+  "description": "A position fix of the vehicle (GPS at the surface, USBL) in a projected plane (x east, y north, metres) common to every mission of the site (UTM, or a local tangent plane about an agreed origin); not necessarily the mission's world frame. A prior for merging missions, never ground truth.",
+  "type": "object",
+  "properties": {{
+    {STAMP},
+    "x_m": {{ "type": "number", "description": "Easting in the common plane, metres (|x| at most 2e7)." }},
+    "y_m": {{ "type": "number", "description": "Northing in the common plane, metres (|y| at most 2e7)." }},
+    "std_m": {{ "type": "number", "exclusiveMinimum": 0, "maximum": 10000, "description": "Standard deviation of each axis of the fix, metres." }}
+  }},
+  "required": ["stamp_s", "x_m", "y_m", "std_m"],
+  "additionalProperties": false
+}}
+"#
+    )
+}
+
 #[derive(Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct BeamMsg<'a> {
@@ -201,6 +223,15 @@ struct GroundTruthMsg {
     x_m: f64,
     y_m: f64,
     yaw_rad: f64,
+}
+
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PositionFixMsg {
+    stamp_s: f64,
+    x_m: f64,
+    y_m: f64,
+    std_m: f64,
 }
 
 fn to_json<T: Serialize>(msg: &T, out: &mut Vec<u8>) {
@@ -256,6 +287,16 @@ pub(crate) fn encode_ground_truth(gt: &GroundTruthPose, out: &mut Vec<u8>) {
         x_m: p.x(),
         y_m: p.y(),
         yaw_rad: p.theta(),
+    };
+    to_json(&msg, out);
+}
+
+pub(crate) fn encode_position_fix(fix: &PositionFix, out: &mut Vec<u8>) {
+    let msg = PositionFixMsg {
+        stamp_s: fix.stamp_s,
+        x_m: fix.x_m,
+        y_m: fix.y_m,
+        std_m: fix.std_m,
     };
     to_json(&msg, out);
 }
@@ -339,6 +380,18 @@ pub(crate) fn decode_ground_truth(data: &[u8]) -> Result<GroundTruthPose, FieldE
     })
 }
 
+pub(crate) fn decode_position_fix(data: &[u8]) -> Result<PositionFix, FieldError> {
+    let msg: PositionFixMsg = from_json(data)?;
+    let fix = PositionFix {
+        stamp_s: msg.stamp_s,
+        x_m: msg.x_m,
+        y_m: msg.y_m,
+        std_m: msg.std_m,
+    };
+    validate::position_fix(&fix)?;
+    Ok(fix)
+}
+
 /// Parses any JSON value of type `T` (used for the mounting metadata).
 pub(crate) fn parse_owned<T: DeserializeOwned>(text: &str) -> Result<T, FieldError> {
     from_json(text.as_bytes())
@@ -355,6 +408,7 @@ mod tests {
             (dvl_schema(), DVL_SCHEMA_NAME),
             (attitude_schema(), ATTITUDE_SCHEMA_NAME),
             (ground_truth_schema(), GROUND_TRUTH_SCHEMA_NAME),
+            (position_fix_schema(), POSITION_FIX_SCHEMA_NAME),
         ] {
             let v: serde_json::Value = serde_json::from_str(&text).unwrap();
             assert_eq!(v["title"], name);
@@ -379,6 +433,40 @@ mod tests {
             r#"{"stamp_s":2.5,"angle_rad":-1.0,"bin_size_m":0.1,"first_bin_range_m":0.0,"intensities":"AAH/"}"#
         );
         assert_eq!(decode_beam(&out).unwrap(), beam);
+    }
+
+    #[test]
+    fn position_fix_message_text_and_bad_fields() {
+        let fix = PositionFix {
+            stamp_s: 10.5,
+            x_m: 482_310.25,
+            y_m: 4_650_120.5,
+            std_m: 2.0,
+        };
+        let mut out = Vec::new();
+        encode_position_fix(&fix, &mut out);
+        assert_eq!(
+            std::str::from_utf8(&out).unwrap(),
+            r#"{"stamp_s":10.5,"x_m":482310.25,"y_m":4650120.5,"std_m":2.0}"#
+        );
+        assert_eq!(decode_position_fix(&out).unwrap(), fix);
+        for (text, field) in [
+            (&br#"{"stamp_s":1,"x_m":0,"y_m":0,"std_m":0}"#[..], "std_m"),
+            (br#"{"stamp_s":1,"x_m":0,"y_m":0,"std_m":-1}"#, "std_m"),
+            (br#"{"stamp_s":1,"x_m":0,"y_m":0,"std_m":1e6}"#, "std_m"),
+            (br#"{"stamp_s":1,"x_m":3e7,"y_m":0,"std_m":1}"#, "x_m"),
+            (br#"{"stamp_s":1,"x_m":0,"y_m":null,"std_m":1}"#, "y_m"),
+            (br#"{"stamp_s":-1,"x_m":0,"y_m":0,"std_m":1}"#, "stamp_s"),
+            (br#"{"stamp_s":1,"x_m":0,"y_m":0}"#, "(message)"),
+        ] {
+            let err = decode_position_fix(text).unwrap_err();
+            assert_eq!(
+                err.field,
+                field,
+                "{}: {err:?}",
+                String::from_utf8_lossy(text)
+            );
+        }
     }
 
     #[test]

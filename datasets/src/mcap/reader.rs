@@ -8,7 +8,7 @@ use super::cdr::CdrReader;
 use super::rosbag2::{self, Storage};
 use super::validate::{self, FieldError};
 use super::{FORMAT_VERSION, METADATA_NAME, json};
-use super::{TOPIC_ATTITUDE, TOPIC_BEAM, TOPIC_DVL, TOPIC_GROUND_TRUTH};
+use super::{TOPIC_ATTITUDE, TOPIC_BEAM, TOPIC_DVL, TOPIC_GROUND_TRUTH, TOPIC_POSITION_FIX};
 use crate::DatasetError;
 use crate::ros::messages::{self, Decoded, MessageType, Stream, Transform};
 use crate::ros::wire::Ros1Reader;
@@ -20,7 +20,16 @@ use std::collections::HashMap;
 use std::fs::File;
 use std::path::{Path, PathBuf};
 
-const STREAM_NAMES: [&str; 4] = ["sonar beams", "DVL", "attitude", "ground truth"];
+/// How many streams a mission has ([`Stream`], [`ROLES`]).
+const STREAMS: usize = 5;
+
+const STREAM_NAMES: [&str; STREAMS] = [
+    "sonar beams",
+    "DVL",
+    "attitude",
+    "ground truth",
+    "position fixes",
+];
 
 /// The serialisation of a ROS message.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -74,6 +83,9 @@ impl Decoder {
             }
             Decoder::Json(Stream::GroundTruth) => {
                 json::decode_ground_truth(data).map(|g| (Decoded::GroundTruth(g), None))
+            }
+            Decoder::Json(Stream::PositionFix) => {
+                json::decode_position_fix(data).map(|f| (Decoded::PositionFix(f), None))
             }
             Decoder::Ros(ty, Wire::Cdr) => CdrReader::new(data)
                 .and_then(|mut r| messages::decode(ty, &mut r, log_time_ns))
@@ -186,14 +198,14 @@ pub fn read_mission_with(
 
 /// The roles a topic can be chosen for, as `--topic ROLE=/name` names them,
 /// in [`Stream`] order.
-pub const ROLES: [&str; 4] = ["sonar", "dvl", "heading", "ground_truth"];
+pub const ROLES: [&str; STREAMS] = ["sonar", "dvl", "heading", "ground_truth", "position_fix"];
 
 /// The topic chosen for each stream (`None`: by message type, when only
 /// one topic carries it).
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct TopicChoice {
     /// Indexed like [`ROLES`].
-    pub topics: [Option<String>; 4],
+    pub topics: [Option<String>; STREAMS],
 }
 
 impl TopicChoice {
@@ -513,7 +525,7 @@ impl<'c> State<'c> {
     }
 
     /// The frames of the chosen sonar and DVL topics.
-    fn frames(&self, chosen: &[Option<String>; 4]) -> assemble::Frames {
+    fn frames(&self, chosen: &[Option<String>; STREAMS]) -> assemble::Frames {
         assemble::Frames {
             sonar: self.frame_of(chosen, Stream::Beam),
             dvl: self.frame_of(chosen, Stream::Dvl),
@@ -523,7 +535,7 @@ impl<'c> State<'c> {
 
     /// `header.frame_id` of the first decoded message of the topic chosen
     /// for `stream`, if any.
-    fn frame_of(&self, chosen: &[Option<String>; 4], stream: Stream) -> Option<String> {
+    fn frame_of(&self, chosen: &[Option<String>; STREAMS], stream: Stream) -> Option<String> {
         chosen[stream as usize].as_ref().and_then(|name| {
             self.topics
                 .iter()
@@ -535,8 +547,8 @@ impl<'c> State<'c> {
     /// The topic of each stream: the chosen one (which must exist and be of
     /// a type that can feed the stream), or the only topic of a type of the
     /// stream that is not chosen for another role.
-    fn choose_topics(&self) -> Result<[Option<String>; 4], DatasetError> {
-        let mut chosen: [Option<String>; 4] = Default::default();
+    fn choose_topics(&self) -> Result<[Option<String>; STREAMS], DatasetError> {
+        let mut chosen: [Option<String>; STREAMS] = Default::default();
         for (s, slot) in chosen.iter_mut().enumerate() {
             let stream = stream_of(s);
             let candidates: Vec<&str> = self
@@ -619,7 +631,8 @@ fn stream_of(s: usize) -> Stream {
         Stream::Dvl,
         Stream::Attitude,
         Stream::GroundTruth,
-    ][s.min(3)]
+        Stream::PositionFix,
+    ][s.min(STREAMS - 1)]
 }
 
 /// The message types read for stream `s` (every stream with `None`).
@@ -629,6 +642,7 @@ fn supported_types(s: Option<usize>) -> String {
         json::DVL_SCHEMA_NAME,
         json::ATTITUDE_SCHEMA_NAME,
         json::GROUND_TRUTH_SCHEMA_NAME,
+        json::POSITION_FIX_SCHEMA_NAME,
     ];
     let mut names: Vec<&str> = Vec::new();
     for (k, name) in json.iter().enumerate() {
@@ -689,6 +703,7 @@ fn classify(
         json::DVL_SCHEMA_NAME => Some(Stream::Dvl),
         json::ATTITUDE_SCHEMA_NAME => Some(Stream::Attitude),
         json::GROUND_TRUTH_SCHEMA_NAME => Some(Stream::GroundTruth),
+        json::POSITION_FIX_SCHEMA_NAME => Some(Stream::PositionFix),
         _ => None,
     };
     if let Some(stream) = json_stream {
@@ -709,7 +724,15 @@ fn classify(
             )),
         };
     }
-    if [TOPIC_BEAM, TOPIC_DVL, TOPIC_ATTITUDE, TOPIC_GROUND_TRUTH].contains(&topic) {
+    if [
+        TOPIC_BEAM,
+        TOPIC_DVL,
+        TOPIC_ATTITUDE,
+        TOPIC_GROUND_TRUTH,
+        TOPIC_POSITION_FIX,
+    ]
+    .contains(&topic)
+    {
         return Err(format!(
             "channel `{topic}` is an echofield topic but has an unknown schema `{name}` (encoding `{schema_encoding}`, message encoding `{message_encoding}`)"
         ));

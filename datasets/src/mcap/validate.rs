@@ -3,7 +3,7 @@
 
 use crate::DatasetError;
 use echofield_frontend::sensors::{
-    Attitude, DvlVelocity, GroundTruthPose, Mission, SensorMounting, SonarBeam,
+    Attitude, DvlVelocity, GroundTruthPose, Mission, PositionFix, SensorMounting, SonarBeam,
 };
 use std::path::Path;
 
@@ -117,6 +117,41 @@ pub(crate) fn ground_truth(gt: &GroundTruthPose) -> Result<(), FieldError> {
     Ok(())
 }
 
+/// The largest coordinate of a position fix, m: a UTM northing is below
+/// 10⁷ m; beyond twice that the value is not a position on Earth's surface
+/// in any projected plane.
+pub(crate) const MAX_FIX_COORDINATE_M: f64 = 2.0e7;
+/// The largest standard deviation of a position fix, m: a fix less certain
+/// than this says nothing a merge could use, and is more likely a unit
+/// mix-up (centimetres, a variance) than a measurement.
+pub(crate) const MAX_FIX_STD_M: f64 = 1.0e4;
+
+/// A fix: finite coordinates within [`MAX_FIX_COORDINATE_M`], a standard
+/// deviation in `(0, MAX_FIX_STD_M]`.
+pub(crate) fn position_fix(fix: &PositionFix) -> Result<(), FieldError> {
+    stamp(fix.stamp_s)?;
+    for (field, v) in [("x_m", fix.x_m), ("y_m", fix.y_m)] {
+        finite(field, v)?;
+        if v.abs() > MAX_FIX_COORDINATE_M {
+            return Err(FieldError::new(
+                field,
+                format!("{v} m is beyond ±{MAX_FIX_COORDINATE_M} m of the plane's origin"),
+            ));
+        }
+    }
+    finite("std_m", fix.std_m)?;
+    if fix.std_m <= 0.0 || fix.std_m > MAX_FIX_STD_M {
+        return Err(FieldError::new(
+            "std_m",
+            format!(
+                "standard deviation {} m is outside (0, {MAX_FIX_STD_M}] m",
+                fix.std_m
+            ),
+        ));
+    }
+    Ok(())
+}
+
 /// The mounting must serialise without `null`: serde_json writes NaN and
 /// infinities as `null`, so this catches a non-finite value in any field,
 /// present or future, and names it.
@@ -149,7 +184,8 @@ pub(crate) fn mission(path: &Path, mission: &Mission) -> Result<(), DatasetError
     check_all(path, "beam", &mission.beams, beam)?;
     check_all(path, "dvl", &mission.dvl, dvl)?;
     check_all(path, "attitude", &mission.attitude, attitude)?;
-    check_all(path, "ground_truth", &mission.ground_truth, ground_truth)
+    check_all(path, "ground_truth", &mission.ground_truth, ground_truth)?;
+    check_all(path, "position_fix", &mission.position_fixes, position_fix)
 }
 
 fn check_all<T>(

@@ -10,10 +10,10 @@ mod canonical;
 
 use super::validate::{self, FieldError};
 use super::{FORMAT_VERSION, METADATA_NAME, TOPIC_ATTITUDE, TOPIC_BEAM, TOPIC_DVL};
-use super::{TOPIC_GROUND_TRUTH, json};
+use super::{TOPIC_GROUND_TRUTH, TOPIC_POSITION_FIX, json};
 use crate::DatasetError;
 use echofield_frontend::sensors::{
-    Attitude, DvlVelocity, GroundTruthPose, SensorMounting, SonarBeam,
+    Attitude, DvlVelocity, GroundTruthPose, PositionFix, SensorMounting, SonarBeam,
 };
 use mcap::records::{MessageHeader, Metadata};
 use std::collections::{BTreeMap, HashMap};
@@ -240,7 +240,7 @@ fn set_readable(_file: &File) {}
 pub struct MissionWriter {
     pub(crate) file: McapFile,
     buf: Vec<u8>,
-    counts: [usize; 4],
+    counts: [usize; 5],
 }
 
 impl MissionWriter {
@@ -266,7 +266,7 @@ impl MissionWriter {
         Ok(Self {
             file,
             buf: Vec::with_capacity(1024),
-            counts: [0; 4],
+            counts: [0; 5],
         })
     }
 
@@ -283,7 +283,7 @@ impl MissionWriter {
         channel: (&str, &str, fn() -> String),
         encode: impl FnOnce(&mut Vec<u8>),
     ) -> Result<(), DatasetError> {
-        const NAMES: [&str; 4] = ["beam", "dvl", "attitude", "ground_truth"];
+        const NAMES: [&str; 5] = ["beam", "dvl", "attitude", "ground_truth", "position_fix"];
         let index = self.counts[stream];
         check.map_err(|e| e.at(self.file.path(), format!("{} {index}", NAMES[stream])))?;
         let (topic, schema_name, schema) = channel;
@@ -347,6 +347,22 @@ impl MissionWriter {
         self.write_record(3, gt.stamp_s, validate::ground_truth(gt), channel, |out| {
             json::encode_ground_truth(gt, out)
         })
+    }
+
+    /// Writes one position fix on `/position/fix`.
+    pub fn write_position_fix(&mut self, fix: &PositionFix) -> Result<(), DatasetError> {
+        let channel = (
+            TOPIC_POSITION_FIX,
+            json::POSITION_FIX_SCHEMA_NAME,
+            json::position_fix_schema as fn() -> String,
+        );
+        self.write_record(
+            4,
+            fix.stamp_s,
+            validate::position_fix(fix),
+            channel,
+            |out| json::encode_position_fix(fix, out),
+        )
     }
 
     /// Completes the file and renames it over the destination.

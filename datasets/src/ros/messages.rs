@@ -75,7 +75,7 @@ pub(crate) use transforms::Transform;
 
 use super::wire::{Header, WireReader};
 use crate::mcap::validate::{self, FieldError};
-use echofield_frontend::sensors::{Attitude, DvlVelocity, GroundTruthPose, SonarBeam};
+use echofield_frontend::sensors::{Attitude, DvlVelocity, GroundTruthPose, PositionFix, SonarBeam};
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 
 /// How far a quaternion's norm may be from 1 before it is rejected rather
@@ -89,6 +89,8 @@ pub(crate) enum Stream {
     Dvl,
     Attitude,
     GroundTruth,
+    /// Position fixes: echofield's own channel only (no ROS type feeds it).
+    PositionFix,
 }
 
 /// The ROS message types echofield reads.
@@ -202,6 +204,7 @@ pub(crate) enum Decoded {
     Dvl(DvlVelocity),
     Attitude(Attitude),
     GroundTruth(GroundTruthPose),
+    PositionFix(PositionFix),
     /// Its pose (ground truth) and its twist (as DVL), used by role.
     Odometry(GroundTruthPose, DvlVelocity),
     Transforms(Vec<Transform>),

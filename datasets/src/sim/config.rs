@@ -2,7 +2,8 @@
 //! documented units and defaults, read from TOML by the CLI.
 
 use super::{
-    DvlSimConfig, HeadingSimConfig, ReplayConfig, SimError, SonarSimConfig, VehicleConfig,
+    DvlSimConfig, GpsSimConfig, HeadingSimConfig, ReplayConfig, SimError, SonarSimConfig,
+    VehicleConfig,
 };
 use echofield_frontend::sensors::SensorMounting;
 use echofield_graph::Se2;
@@ -30,6 +31,8 @@ pub struct SimConfig {
     pub heading: HeadingSimConfig,
     /// Settings of the St Pere replay only.
     pub replay: ReplayConfig,
+    /// Position fixes at the surface; off by default.
+    pub gps: GpsSimConfig,
 }
 
 impl Default for SimConfig {
@@ -48,6 +51,7 @@ impl Default for SimConfig {
             dvl: DvlSimConfig::default(),
             heading: HeadingSimConfig::default(),
             replay: ReplayConfig::default(),
+            gps: GpsSimConfig::default(),
         }
     }
 }
@@ -82,7 +86,8 @@ impl SimConfig {
         self.sonar.validate()?;
         self.dvl.validate()?;
         self.heading.validate()?;
-        self.replay.validate()
+        self.replay.validate()?;
+        self.gps.validate()
     }
 }
 
@@ -171,6 +176,8 @@ mod tests {
                 "ground_truth_rate_hz",
                 Box::new(|c| c.ground_truth_rate_hz = 0.0),
             ),
+            ("gps.noise_std_m", Box::new(|c| c.gps.noise_std_m = 0.0)),
+            ("gps.period_s", Box::new(|c| c.gps.period_s = f64::NAN)),
             (
                 "replay.dgps_smoothing_s",
                 Box::new(|c| c.replay.dgps_smoothing_s = -1.0),

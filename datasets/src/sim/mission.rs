@@ -21,6 +21,7 @@ const STREAM_BEAM: u64 = 1;
 const STREAM_DVL: u64 = 2;
 const STREAM_HEADING: u64 = 3;
 const STREAM_BLOBS: u64 = 4;
+const STREAM_GPS: u64 = 5;
 
 /// The random stream for `purpose` and `index` under `seed`.
 pub fn stream_rng(seed: u64, purpose: u64, index: u64) -> ChaCha8Rng {
@@ -70,6 +71,11 @@ pub fn simulate_mission(scenario: &Scenario, seed: u64) -> Result<Mission, SimEr
         dvl,
         attitude,
         ground_truth: ground_truth_records(scenario),
+        position_fixes: super::gps::simulate_fixes(
+            truth,
+            &config.gps,
+            &mut stream_rng(seed, STREAM_GPS, 0),
+        ),
         warnings: Default::default(),
     })
 }

@@ -144,6 +144,7 @@ pub fn synthetic_mission(path: &SyntheticPath, config: &SyntheticNavConfig, seed
         dvl,
         attitude,
         ground_truth,
+        position_fixes: Vec::new(),
         warnings: Default::default(),
     }
 }

@@ -186,7 +186,7 @@ impl Mission {
 ///
 /// `topics` chooses the topic of each stream of a ROS 2 recording, as
 /// `--topic ROLE=/name` does: a dict like `{"ground_truth": "/gps/odom"}`
-/// (roles: sonar, dvl, heading, ground_truth). Raises `echofield.Error`
+/// (roles: sonar, dvl, heading, ground_truth, position_fix). Raises `echofield.Error`
 /// naming the file, record and field of bad input.
 #[pyfunction]
 #[pyo3(signature = (path, topics = None))]

@@ -54,7 +54,7 @@ pub struct RosArgs {
     #[arg(short, long)]
     pub output: PathBuf,
     /// The topic of a role, `ROLE=/name` (roles: sonar, dvl, heading,
-    /// ground_truth); needed where several topics carry a role's types.
+    /// ground_truth, position_fix); needed where several topics carry a role's types.
     #[arg(long = "topic", value_name = "ROLE=/NAME", value_parser = TopicChoice::parse_assignment)]
     pub topics: Vec<(usize, String)>,
 }
@@ -71,7 +71,10 @@ Examples:
   echofield convert stpere datasets/stpere-marina --yaw-offset-deg 0 --output raw.mcap
 
 Frames: world x east / y north about the first DGPS fix; vehicle x forward,
-y port; yaw counter-clockwise from east (see datasets/stpere-marina/README.md).";
+y port; yaw counter-clockwise from east (see datasets/stpere-marina/README.md).
+The DGPS becomes the ground truth only, never the /position/fix channel: as
+the prior of a merge of missions (run with several missions) it would make
+the merged error against it meaningless.";
 
 const PING360_EXAMPLES: &str = "\
 Examples:

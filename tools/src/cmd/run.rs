@@ -93,7 +93,7 @@ pub struct Args {
     #[arg(value_name = "MORE_MISSIONS")]
     pub more_missions: Vec<PathBuf>,
     /// ROS input: the topic that feeds a stream, as ROLE=/name (roles:
-    /// sonar, dvl, heading, ground_truth); repeat for several. A stream
+    /// sonar, dvl, heading, ground_truth, position_fix); repeat for several. A stream
     /// with one topic of a type echofield reads needs none; a topic chosen
     /// for one role feeds no other.
     #[arg(long = "topic", value_name = "ROLE=/NAME", value_parser = TopicChoice::parse_assignment)]

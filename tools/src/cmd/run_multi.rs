@@ -59,12 +59,13 @@ pub fn run(args: Args) -> Result<()> {
     Ok(())
 }
 
-/// One line per mission (nodes, loops, ATE, merged or not), then the
+/// One line per mission (nodes, loops, ATE, merged or not, the fate of
+/// its position fixes), then the
 /// merged graph's line; `elapsed_s` since the missions were loaded.
 fn print_summary(report: &MultiReport, elapsed_s: f64, output: &Path) {
     for m in &report.missions {
         println!(
-            "mission {} ({}): {} nodes, {} loops{}{}",
+            "mission {} ({}): {} nodes, {} loops{}{}{}",
             m.mission,
             m.name,
             m.nodes,
@@ -79,7 +80,12 @@ fn print_summary(report: &MultiReport, elapsed_s: f64, output: &Path) {
                 })
             } else {
                 ", NOT merged (no placement)".to_string()
-            }
+            },
+            m.fix_prior.map_or(String::new(), |p| format!(
+                "; {} fixes: {}",
+                m.position_fixes,
+                p.describe()
+            ))
         );
     }
     if report.merged {

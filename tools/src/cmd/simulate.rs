@@ -25,8 +25,16 @@ tank (20 m x 14 m, ~2 min), canyon (rock walls, out and back, ~18 min),
 stpere (the real St Pere navigation with a marina drawn around its track).
 The same scenario, seed and config always give a byte-identical file.
 
+  # Two marina surveys with noisy GPS fixes at the surface (a fix every 10 s
+  # for the first and last 300 s, 2 m per axis), then merged with the fixes
+  # as the placement prior:
+  printf '[gps]\nperiod_s = 10.0\nnoise_std_m = 2.0\n' > gps.toml
+  echofield simulate --scenario marina --seed 1 --config gps.toml --output a.mcap
+  echofield simulate --scenario marina --seed 2 --config gps.toml --output b.mcap
+  echofield run a.mcap b.mcap --output merged
+
 The config file is TOML with the sections [vehicle], [sonar], [dvl],
-[heading], [replay], [mounting] and the top-level keys start_stamp_s and
+[heading], [replay], [mounting], [gps] and the top-level keys start_stamp_s and
 ground_truth_rate_hz; every key is optional, unknown keys are errors (see
 echofield_datasets::sim::SimConfig for units and defaults). The effective
 config is written beside the output as <OUTPUT stem>.sim.toml.";

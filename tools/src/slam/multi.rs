@@ -132,8 +132,60 @@ pub struct MissionReport {
     pub merged: bool,
     /// Its own run's health verdict.
     pub health: String,
+    /// Its position fixes (0: none).
+    pub position_fixes: usize,
+    /// What became of the prior its fixes give; absent without fixes.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fix_prior: Option<FixPrior>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub placement: Option<Placement>,
+}
+
+/// The fate of a mission's position fixes in the merge.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FixPrior {
+    /// The anchor, whose fixes are the map's side of the priors of the
+    /// missions placed after it.
+    Map,
+    /// The fixes gave no prior (too few at its nodes or at the map's, too
+    /// little spread, or the map has none): searched without.
+    Unused,
+    /// The placement from the scans lies within the prior's gate.
+    Confirmed,
+    /// The scans placed it outside the prior's gate, or found nothing
+    /// within it: the fixes were not trusted.
+    Rejected,
+}
+
+impl FixPrior {
+    /// Of a mission with `fixes` fixes and `placement` (`None`: the
+    /// anchor); `None` without fixes.
+    fn of(fixes: usize, placement: Option<&Placement>) -> Option<Self> {
+        if fixes == 0 {
+            return None;
+        }
+        Some(match placement {
+            None => FixPrior::Map,
+            Some(p) => match &p.prior {
+                None => FixPrior::Unused,
+                Some(check) if check.consistent => FixPrior::Confirmed,
+                Some(_) => FixPrior::Rejected,
+            },
+        })
+    }
+
+    /// For the summary line.
+    pub fn describe(self) -> &'static str {
+        match self {
+            FixPrior::Map => "its position fixes place the map",
+            FixPrior::Unused => "its position fixes gave no prior",
+            FixPrior::Confirmed => "the prior from its position fixes confirmed by the sonar",
+            FixPrior::Rejected => {
+                "the prior from its position fixes REJECTED by the sonar (not trusted)"
+            }
+        }
+    }
 }
 
 /// What the report's figures mean.
@@ -141,15 +193,19 @@ pub struct MissionReport {
 pub struct Definitions {
     pub merged_ate_rmse_m: &'static str,
     pub placement: &'static str,
+    pub fix_prior: &'static str,
 }
 
 const DEFINITIONS: Definitions = Definitions {
     merged_ate_rmse_m: "position RMSE of every merged node (all missions) after one SE(2) fit onto the ground truth at the node stamps, m",
     placement: "map_from_mission [x_m, y_m, theta_rad]: the mission's world frame in the anchor's (the map frame); found by probes of several consecutive scans searched over the map's likelihood field, accepted when at least 3 usable probes agree",
+    fix_prior: "what became of a mission's position fixes (the /position/fix channel): map (the anchor's fixes are the map's side of the others' priors), unused (too few, too little spread or no counterpart on the map to give a prior), confirmed (the placement from the scans lies within the prior's gate, 3 sigma), rejected (it does not, or nothing was found within the prior: the fixes were not trusted)",
 };
 
-/// Runs every mission and merges them (see the module doc). Errors: a
-/// mission's own run failing (naming it), a failed merged solve.
+/// Runs every mission and merges them (see the module doc), with the
+/// position fixes of the missions that carry them as the placement prior
+/// ([`combine_with_fixes`]). Errors: a mission's own run failing (naming
+/// it), a failed merged solve.
 pub fn run_missions(
     missions: &[Mission],
     config: &SlamConfig,
@@ -162,7 +218,9 @@ pub fn run_missions(
             .with_context(|| format!("mission {} ({})", m + 1, mission.name))?;
         runs.push(run);
     }
-    let mut output = combine(runs, config)?;
+    let fixes: Vec<Option<PositionFixes>> =
+        missions.iter().map(PositionFixes::of_mission).collect();
+    let mut output = combine_with_fixes(runs, &fixes, config)?;
     output.mountings = missions.iter().map(|m| Some(m.mounting.clone())).collect();
     output.report.time_s = start.elapsed().as_secs_f64();
     Ok(output)
@@ -236,6 +294,14 @@ pub fn combine_with_fixes(
         None
     };
     let runs_len = runs.len();
+    let fix_counts: Vec<usize> = (0..runs_len)
+        .map(|m| {
+            fixes
+                .get(m)
+                .and_then(Option::as_ref)
+                .map_or(0, |f| f.fixes.len())
+        })
+        .collect();
     let mut output = MultiOutput {
         report: MultiReport::unfilled(&order, warnings),
         runs,
@@ -245,6 +311,21 @@ pub fn combine_with_fixes(
         merged,
     };
     fill_report(&mut output);
+    for (report, &count) in output.report.missions.iter_mut().zip(&fix_counts) {
+        report.position_fixes = count;
+        report.fix_prior = FixPrior::of(count, output.placements[report.mission - 1].as_ref());
+    }
+    // The anchor's fixes served only if another mission got a prior.
+    let priors = output
+        .placements
+        .iter()
+        .flatten()
+        .any(|p| p.prior.is_some());
+    for report in &mut output.report.missions {
+        if report.fix_prior == Some(FixPrior::Map) && !priors {
+            report.fix_prior = Some(FixPrior::Unused);
+        }
+    }
     output.report.time_s = start.elapsed().as_secs_f64();
     Ok(output)
 }
@@ -402,6 +483,8 @@ fn fill_report(output: &mut MultiOutput) {
             merged_ate_rmse_m: merged_ate,
             merged: member,
             health: format!("{:?}", run.report.health.verdict).to_lowercase(),
+            position_fixes: 0,
+            fix_prior: None,
             placement: output.placements[m].clone(),
         });
     }

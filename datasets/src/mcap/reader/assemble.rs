@@ -3,8 +3,8 @@
 //! input has no echofield metadata, and a [`ChannelUse`] per topic.
 
 use super::{
-    ChannelUse, Decoder, ROLES, STREAM_NAMES, TF, TF_STATIC, Topic, TopicChoice, chosen_elsewhere,
-    resorted, stream_of,
+    ChannelUse, Decoder, ROLES, STREAM_NAMES, STREAMS, TF, TF_STATIC, Topic, TopicChoice,
+    chosen_elsewhere, resorted, stream_of,
 };
 use crate::ros::messages::{Decoded, MessageType, Stream, Transform};
 use crate::ros::tf;
@@ -13,7 +13,7 @@ use echofield_frontend::sensors::Mission;
 /// What every topic's use is judged against.
 pub(super) struct TopicContext<'a> {
     /// The topic chosen for each stream (in [`ROLES`] order).
-    pub chosen: &'a [Option<String>; 4],
+    pub chosen: &'a [Option<String>; STREAMS],
     pub choice: &'a TopicChoice,
     /// The `/tf` frame pairs that never changed.
     pub constant_tf: &'a [Transform],
@@ -48,7 +48,7 @@ impl Gathered {
     /// transforms of `/tf_static` to `static_transforms`) and records its
     /// use.
     pub fn add_topic(&mut self, name: String, topic: Topic, context: &TopicContext) {
-        let used = (0..4)
+        let used = (0..STREAMS)
             .find(|&s| context.chosen[s].as_deref() == Some(name.as_str()))
             .map(stream_of);
         let is_tf = matches!(topic.decoder, Some(Decoder::Ros(MessageType::TfMessage, _)));
@@ -63,6 +63,7 @@ impl Gathered {
                 (Decoded::Dvl(d), _) => self.mission.dvl.push(d),
                 (Decoded::Attitude(a), _) => self.mission.attitude.push(a),
                 (Decoded::GroundTruth(g), _) => self.mission.ground_truth.push(g),
+                (Decoded::PositionFix(f), _) => self.mission.position_fixes.push(f),
                 (Decoded::Odometry(_, d), Some(Stream::Dvl)) => self.mission.dvl.push(d),
                 (Decoded::Odometry(g, _), _) => self.mission.ground_truth.push(g),
                 (Decoded::Transforms(_), _) => {}
@@ -200,6 +201,10 @@ pub(super) fn sort_streams(mission: &mut Mission) {
             STREAM_NAMES[3],
             mission.ground_truth.iter().map(|g| g.stamp_s),
         ),
+        resorted(
+            STREAM_NAMES[4],
+            mission.position_fixes.iter().map(|f| f.stamp_s),
+        ),
     ];
     mission.warnings.extend(streams.into_iter().flatten());
     mission
@@ -211,5 +216,8 @@ pub(super) fn sort_streams(mission: &mut Mission) {
         .sort_by(|a, b| a.stamp_s.total_cmp(&b.stamp_s));
     mission
         .ground_truth
+        .sort_by(|a, b| a.stamp_s.total_cmp(&b.stamp_s));
+    mission
+        .position_fixes
         .sort_by(|a, b| a.stamp_s.total_cmp(&b.stamp_s));
 }

@@ -251,8 +251,7 @@ fn caption(output: &MultiOutput) -> String {
 /// fitted together onto their merged nodes (dashed).
 fn tracks(output: &MultiOutput) -> Vec<Track> {
     let mut tracks = Vec::new();
-    let (mut p, mut q) = (Vec::new(), Vec::new());
-    for (m, run) in output.runs.iter().enumerate() {
+    for (m, _) in output.runs.iter().enumerate() {
         let poses = output.poses(m);
         let merged = output.report.missions.get(m).is_some_and(|r| r.merged);
         let label = format!(
@@ -269,17 +268,11 @@ fn tracks(output: &MultiOutput) -> Vec<Track> {
             COLOURS[m % COLOURS.len()],
             width_px,
         ));
-        if merged {
-            for (n, pose) in run.nodes.iter().zip(&poses) {
-                if let Some(g) = n.ground_truth {
-                    p.push(g.translation());
-                    q.push(pose.translation());
-                }
-            }
-        }
     }
-    if p.len() >= 2 {
-        let map_from_truth = align_se2(&p, &q);
+    let merged: Vec<usize> = (0..output.runs.len())
+        .filter(|&m| output.report.missions.get(m).is_some_and(|r| r.merged))
+        .collect();
+    if let Some(map_from_truth) = frame_from_truth(output, &merged) {
         for (m, run) in output.runs.iter().enumerate() {
             if !output.report.missions.get(m).is_some_and(|r| r.merged) {
                 continue;
@@ -301,6 +294,39 @@ fn tracks(output: &MultiOutput) -> Vec<Track> {
         }
     }
     tracks
+}
+
+/// The SE(2) fit `frame_from_truth` of the ground truth of `missions` at
+/// their nodes onto their written poses ([`MultiOutput::poses`], one
+/// frame), or `None` with fewer than two such nodes.
+fn frame_from_truth(output: &MultiOutput, missions: &[usize]) -> Option<Se2> {
+    let (mut p, mut q) = (Vec::new(), Vec::new());
+    for &m in missions {
+        for (n, pose) in output.runs[m].nodes.iter().zip(output.poses(m)) {
+            if let Some(g) = n.ground_truth {
+                p.push(g.translation());
+                q.push(pose.translation());
+            }
+        }
+    }
+    (p.len() >= 2).then(|| align_se2(&p, &q))
+}
+
+/// `frame_from_own` of mission `m`: its own world frame in the frame its
+/// poses are written in (the map frame by its placement when it is in
+/// the map, the identity for the anchor and for a mission in its own
+/// frame).
+fn frame_from_own(output: &MultiOutput, m: usize) -> Se2 {
+    if in_map(output, m) {
+        output
+            .placements
+            .get(m)
+            .and_then(Option::as_ref)
+            .and_then(|p| p.map_from_mission)
+            .unwrap_or_else(Se2::identity)
+    } else {
+        Se2::identity()
+    }
 }
 
 /// Whether mission `m`'s poses are in the map frame: a member of the
@@ -357,7 +383,9 @@ fn frame_of(output: &MultiOutput, m: usize) -> String {
 /// ([`crate::slam::outputs::foxglove`]) once per mission M under
 /// `/mission_M` (`/mission_M/slam/trajectory`, `/mission_M/slam/pose`,
 /// `/mission_M/slam/scan`, `/mission_M/slam/acoustic_image`, its own loops
-/// on `/mission_M/slam/loops/accepted`, `/tf` `world` → `vehicle_M`), the
+/// on `/mission_M/slam/loops/accepted`, `/tf` `world` → `vehicle_M`, and
+/// [`write_mission_navigation`]'s dead reckoning, ground truth and
+/// `vehicle_M` → `sonar_M`), the
 /// merged mosaic on `/slam/mosaic` and the accepted cross-mission loops
 /// on `/slam/loops/cross`, both at the anchor's first stamp. The file's
 /// name (its `echofield.mission` metadata) lists the missions by number;
@@ -394,8 +422,18 @@ pub fn write_mcap(
         write_cross_loops(&mut w, t0, merged, &all_poses)?;
     }
     let mut pixels = Vec::new();
+    let in_map_missions: Vec<usize> = (0..output.runs.len())
+        .filter(|&m| in_map(output, m))
+        .collect();
+    let map_from_truth = frame_from_truth(output, &in_map_missions);
     for (m, poses) in all_poses.iter().enumerate() {
         write_mission(&mut w, output, m, poses, &mut pixels)?;
+        let placed_truth = if in_map(output, m) {
+            map_from_truth
+        } else {
+            frame_from_truth(output, &[m])
+        };
+        write_mission_navigation(&mut w, output, m, placed_truth)?;
     }
     w.complete()?.persist()?;
     Ok(())
@@ -427,6 +465,61 @@ fn write_cross_loops(
         2.0,
         &segments,
     )?;
+    Ok(())
+}
+
+/// Mission `m`'s navigation topics, as `run`'s at its first node's stamp:
+/// `/mission_M/dead_reckoning/trajectory` (its dead reckoning at its
+/// nodes, moved into its frame by [`frame_from_own`]),
+/// `/mission_M/ground_truth/trajectory` (its whole ground truth placed by
+/// `frame_from_truth`, the fit of the ground truth onto the poses, when
+/// it has one) and the `/tf` transform `vehicle_M` → `sonar_M` (its
+/// mounting, when known).
+fn write_mission_navigation(
+    w: &mut MissionWriter,
+    output: &MultiOutput,
+    m: usize,
+    frame_from_truth: Option<Se2>,
+) -> Result<()> {
+    let run = &output.runs[m];
+    let Some(first) = run.nodes.first() else {
+        return Ok(());
+    };
+    let (t0, prefix, frame) = (
+        first.stamp_s,
+        format!("/mission_{}", m + 1),
+        frame_of(output, m),
+    );
+    let from_own = frame_from_own(output, m);
+    let dead_reckoning: Vec<Se2> = run
+        .nodes
+        .iter()
+        .map(|n| from_own.compose(&n.dead_reckoning))
+        .collect();
+    w.write_poses_in_frame(
+        &format!("{prefix}/dead_reckoning/trajectory"),
+        t0,
+        &frame,
+        &dead_reckoning,
+    )?;
+    if let (Some(truth), Some(from_truth)) = (&run.ground_truth, frame_from_truth) {
+        let poses: Vec<Se2> = truth.iter().map(|(_, p)| from_truth.compose(p)).collect();
+        w.write_poses_in_frame(
+            &format!("{prefix}/ground_truth/trajectory"),
+            t0,
+            &frame,
+            &poses,
+        )?;
+    }
+    if let Some(mounting) = output.mountings.get(m).and_then(Option::as_ref) {
+        w.write_frame_transform(
+            "/tf",
+            t0,
+            &format!("vehicle_{}", m + 1),
+            &format!("sonar_{}", m + 1),
+            &mounting.vehicle_from_sonar,
+        )?;
+    }
     Ok(())
 }
 

@@ -385,6 +385,25 @@ pub struct PositionFixes {
     pub sigma_m: f64,
 }
 
+impl PositionFixes {
+    /// The fixes of `mission` (`None` when it has none): their positions,
+    /// and as the one sigma the prior needs the RMS of their standard
+    /// deviations (a few poor fixes among good ones widen it, rather than
+    /// being hidden by a median).
+    pub fn of_mission(mission: &echofield_frontend::sensors::Mission) -> Option<Self> {
+        let fixes = &mission.position_fixes;
+        if fixes.is_empty() {
+            return None;
+        }
+        let sigma_m =
+            (fixes.iter().map(|f| f.std_m.powi(2)).sum::<f64>() / fixes.len() as f64).sqrt();
+        Some(Self {
+            fixes: fixes.iter().map(|f| (f.stamp_s, [f.x_m, f.y_m])).collect(),
+            sigma_m,
+        })
+    }
+}
+
 /// A fix counts for a node when its stamp is within this of the node's, s.
 pub const FIX_MATCH_S: f64 = 1.0;
 /// Fixes must spread at least this far (RMS distance from their centroid,
