@@ -52,6 +52,8 @@ use crate::sensors::SonarBeam;
 use echofield_graph::Se2;
 use nalgebra::Vector2;
 use serde::{Deserialize, Serialize};
+use std::cell::RefCell;
+use std::sync::OnceLock;
 
 /// How cells between beam samples get their value (paper section 4).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -342,12 +344,25 @@ impl ImageConfig {
     }
 }
 
+thread_local! {
+    /// The paired profiles of [`AcousticImage::build`] (eight bytes per
+    /// bin), kept per thread between images: a fresh buffer of that size
+    /// per image comes from `mmap` and costs a page fault per 4 KiB (as
+    /// the raster's accumulators, see [`raster`]).
+    static PAIRED: RefCell<Vec<[f32; 2]>> = const { RefCell::new(Vec::new()) };
+}
+
 /// The acoustic image `I_k`: a grid of intensities in `[0, 1]` in the frame
 /// of the rotation's reference pose, plus its search pyramid.
 #[derive(Clone, Debug)]
 pub struct AcousticImage {
     grid: Grid,
-    pyramid: Pyramid,
+    /// The search pyramid of `grid` with `pyramid_levels` levels, built on
+    /// first read ([`Self::pyramid`]): only a branch-and-bound search reads
+    /// it, so an image read only by local climbs (the densification's
+    /// matches of a released image built again) never pays for it.
+    pyramid: OnceLock<Pyramid>,
+    pyramid_levels: usize,
     /// The samples behind the raster (`None` for images made from a grid).
     polar: Option<PolarSamples>,
     /// The raster of the pose fit, when it differs from `grid`
@@ -378,22 +393,32 @@ impl AcousticImage {
         config.validate()?;
         validate_beams(beams, reference_from_beams)?;
         let coded = normalise::normalise_beams_coded(beams, config);
-        let profiles = coded.decoded();
         let cell_m = config.cell_size_for(beams);
+        let frames = reference_from_beams;
         let (mut grid, mut fit_grid) = if config.pose_fit.enabled {
-            let fit_profiles =
-                normalise::normalise_beams(beams, &config.pose_fit.image_config(config));
-            let (grid, fit) = raster::rasterise_pair(
-                beams,
-                reference_from_beams,
-                &profiles,
-                &fit_profiles,
-                cell_m,
-                config,
-            )?;
+            let fit_coded =
+                normalise::normalise_beams_coded(beams, &config.pose_fit.image_config(config));
+            // Paired straight from the codes (the same values as pairing
+            // the decoded profiles, without their two `f32` copies), in
+            // this thread's buffer.
+            let (grid, fit) = match coded.paired_in(&fit_coded, PAIRED.take()) {
+                Some(paired) => {
+                    let grids = raster::rasterise_paired(beams, frames, &paired, cell_m, config);
+                    PAIRED.set(paired.into_values());
+                    grids?
+                }
+                None => raster::rasterise_pair(
+                    beams,
+                    frames,
+                    &coded.decoded(),
+                    &fit_coded.decoded(),
+                    cell_m,
+                    config,
+                )?,
+            };
             (grid, Some(fit))
         } else {
-            let grid = raster::rasterise(beams, reference_from_beams, &profiles, cell_m, config)?;
+            let grid = raster::rasterise(beams, frames, &coded.decoded(), cell_m, config)?;
             (grid, None)
         };
         if config.smoothing_sigma_m > 0.0 {
@@ -436,12 +461,14 @@ impl AcousticImage {
     }
 
     /// Wraps an existing grid (for tests and for images made elsewhere).
+    /// Its pyramid ([`Self::pyramid`]) is built on first read.
     pub fn from_grid(grid: Grid, pyramid_levels: usize) -> Self {
-        let pyramid = Pyramid::build(&grid, pyramid_levels);
-        let max_value = pyramid.max_value();
+        // The value the pyramid records as its `max_value`.
+        let max_value = grid::max_value(grid.values());
         Self {
             grid,
-            pyramid,
+            pyramid: OnceLock::new(),
+            pyramid_levels,
             polar: None,
             fit_grid: None,
             max_value,
@@ -467,8 +494,16 @@ impl AcousticImage {
         self.fit_grid.as_ref()
     }
 
+    /// The search pyramid of [`Self::grid`], built on the first call (by
+    /// one thread; concurrent callers wait for it).
     pub fn pyramid(&self) -> &Pyramid {
-        &self.pyramid
+        self.pyramid
+            .get_or_init(|| Pyramid::build(&self.grid, self.pyramid_levels))
+    }
+
+    /// [`Pyramid::len`] of [`Self::pyramid`], without building it.
+    pub fn pyramid_len(&self) -> usize {
+        Pyramid::levels_for(&self.grid, self.pyramid_levels)
     }
 
     pub fn cell_size_m(&self) -> f64 {
@@ -511,10 +546,11 @@ impl AcousticImage {
 
     /// Bytes the image holds on the heap (rasters, built pyramid levels,
     /// samples): what a node's image costs for the rest of the mission.
+    /// Grows when the pyramid or a level of it is built on first read.
     pub fn heap_bytes(&self) -> usize {
         self.grid.heap_bytes()
             + self.fit_grid.as_ref().map_or(0, Grid::heap_bytes)
-            + self.pyramid.heap_bytes()
+            + self.pyramid.get().map_or(0, Pyramid::heap_bytes)
             + self.polar.as_ref().map_or(0, PolarSamples::heap_bytes)
     }
 
