@@ -53,7 +53,6 @@ use echofield_graph::Se2;
 use nalgebra::Vector2;
 use serde::{Deserialize, Serialize};
 use std::cell::RefCell;
-use std::sync::OnceLock;
 
 /// How cells between beam samples get their value (paper section 4).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -357,12 +356,7 @@ thread_local! {
 #[derive(Clone, Debug)]
 pub struct AcousticImage {
     grid: Grid,
-    /// The search pyramid of `grid` with `pyramid_levels` levels, built on
-    /// first read ([`Self::pyramid`]): only a branch-and-bound search reads
-    /// it, so an image read only by local climbs (the densification's
-    /// matches of a released image built again) never pays for it.
-    pyramid: OnceLock<Pyramid>,
-    pyramid_levels: usize,
+    pyramid: Pyramid,
     /// The samples behind the raster (`None` for images made from a grid).
     polar: Option<PolarSamples>,
     /// The raster of the pose fit, when it differs from `grid`
@@ -461,14 +455,12 @@ impl AcousticImage {
     }
 
     /// Wraps an existing grid (for tests and for images made elsewhere).
-    /// Its pyramid ([`Self::pyramid`]) is built on first read.
     pub fn from_grid(grid: Grid, pyramid_levels: usize) -> Self {
-        // The value the pyramid records as its `max_value`.
-        let max_value = grid::max_value(grid.values());
+        let pyramid = Pyramid::build(&grid, pyramid_levels);
+        let max_value = pyramid.max_value();
         Self {
             grid,
-            pyramid: OnceLock::new(),
-            pyramid_levels,
+            pyramid,
             polar: None,
             fit_grid: None,
             max_value,
@@ -494,16 +486,8 @@ impl AcousticImage {
         self.fit_grid.as_ref()
     }
 
-    /// The search pyramid of [`Self::grid`], built on the first call (by
-    /// one thread; concurrent callers wait for it).
     pub fn pyramid(&self) -> &Pyramid {
-        self.pyramid
-            .get_or_init(|| Pyramid::build(&self.grid, self.pyramid_levels))
-    }
-
-    /// [`Pyramid::len`] of [`Self::pyramid`], without building it.
-    pub fn pyramid_len(&self) -> usize {
-        Pyramid::levels_for(&self.grid, self.pyramid_levels)
+        &self.pyramid
     }
 
     pub fn cell_size_m(&self) -> f64 {
@@ -546,11 +530,10 @@ impl AcousticImage {
 
     /// Bytes the image holds on the heap (rasters, built pyramid levels,
     /// samples): what a node's image costs for the rest of the mission.
-    /// Grows when the pyramid or a level of it is built on first read.
     pub fn heap_bytes(&self) -> usize {
         self.grid.heap_bytes()
             + self.fit_grid.as_ref().map_or(0, Grid::heap_bytes)
-            + self.pyramid.get().map_or(0, Pyramid::heap_bytes)
+            + self.pyramid.heap_bytes()
             + self.polar.as_ref().map_or(0, PolarSamples::heap_bytes)
     }
 

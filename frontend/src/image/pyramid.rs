@@ -139,7 +139,7 @@ impl Pyramid {
         } else {
             1.0
         };
-        if Self::levels_for(grid, levels) == 0 {
+        if levels == 0 || width == 0 || height == 0 {
             return Self {
                 levels: Vec::new(),
                 scale,
@@ -166,16 +166,6 @@ impl Pyramid {
                 .expect("eager levels are built once");
         }
         pyramid
-    }
-
-    /// [`Self::len`] of [`Self::build`]`(grid, levels)`: `levels`, or 0
-    /// for a grid without cells.
-    pub fn levels_for(grid: &Grid, levels: usize) -> usize {
-        if grid.width() == 0 || grid.height() == 0 {
-            0
-        } else {
-            levels
-        }
     }
 
     /// Level `h ≥ 2` from level `h - 1`.

@@ -167,7 +167,7 @@ impl<'a> SearchProblem<'a> {
         let n_angles = (2 * disc.angle_steps + 1) as usize;
         let span = (2 * disc.cells_x.max(disc.cells_y) + 1) as u32;
         let needed = (u32::BITS - (span - 1).leading_zeros()) as usize; // ceil(log2(span))
-        let top_level = needed.min(image.pyramid_len());
+        let top_level = needed.min(image.pyramid().len());
         Self {
             image,
             disc,
