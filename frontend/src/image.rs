@@ -52,6 +52,7 @@ use crate::sensors::SonarBeam;
 use echofield_graph::Se2;
 use nalgebra::Vector2;
 use serde::{Deserialize, Serialize};
+use std::cell::RefCell;
 
 /// How cells between beam samples get their value (paper section 4).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -342,6 +343,14 @@ impl ImageConfig {
     }
 }
 
+thread_local! {
+    /// The paired profiles of [`AcousticImage::build`] (eight bytes per
+    /// bin), kept per thread between images: a fresh buffer of that size
+    /// per image comes from `mmap` and costs a page fault per 4 KiB (as
+    /// the raster's accumulators, see [`raster`]).
+    static PAIRED: RefCell<Vec<[f32; 2]>> = const { RefCell::new(Vec::new()) };
+}
+
 /// The acoustic image `I_k`: a grid of intensities in `[0, 1]` in the frame
 /// of the rotation's reference pose, plus its search pyramid.
 #[derive(Clone, Debug)]
@@ -378,22 +387,32 @@ impl AcousticImage {
         config.validate()?;
         validate_beams(beams, reference_from_beams)?;
         let coded = normalise::normalise_beams_coded(beams, config);
-        let profiles = coded.decoded();
         let cell_m = config.cell_size_for(beams);
+        let frames = reference_from_beams;
         let (mut grid, mut fit_grid) = if config.pose_fit.enabled {
-            let fit_profiles =
-                normalise::normalise_beams(beams, &config.pose_fit.image_config(config));
-            let (grid, fit) = raster::rasterise_pair(
-                beams,
-                reference_from_beams,
-                &profiles,
-                &fit_profiles,
-                cell_m,
-                config,
-            )?;
+            let fit_coded =
+                normalise::normalise_beams_coded(beams, &config.pose_fit.image_config(config));
+            // Paired straight from the codes (the same values as pairing
+            // the decoded profiles, without their two `f32` copies), in
+            // this thread's buffer.
+            let (grid, fit) = match coded.paired_in(&fit_coded, PAIRED.take()) {
+                Some(paired) => {
+                    let grids = raster::rasterise_paired(beams, frames, &paired, cell_m, config);
+                    PAIRED.set(paired.into_values());
+                    grids?
+                }
+                None => raster::rasterise_pair(
+                    beams,
+                    frames,
+                    &coded.decoded(),
+                    &fit_coded.decoded(),
+                    cell_m,
+                    config,
+                )?,
+            };
             (grid, Some(fit))
         } else {
-            let grid = raster::rasterise(beams, reference_from_beams, &profiles, cell_m, config)?;
+            let grid = raster::rasterise(beams, frames, &coded.decoded(), cell_m, config)?;
             (grid, None)
         };
         if config.smoothing_sigma_m > 0.0 {

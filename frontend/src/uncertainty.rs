@@ -167,9 +167,54 @@ impl LinkGraph {
     /// `source` (`None` elsewhere), propagated along the most certain path
     /// with the poses `estimate` for the Jacobians.
     pub fn relative_from(&self, source: usize, estimate: &[Se2]) -> Vec<Option<Matrix3<f64>>> {
+        self.search(source, estimate, None)
+    }
+
+    /// [`Self::relative_from`]`(source, estimate)[t]` for each `t` of
+    /// `targets`, in their order (`None` for a node past the graph): the
+    /// same search, stopped once every target's covariance is final (a
+    /// node's is when it leaves the queue), so a query about a few nodes
+    /// near `source` need not visit the whole graph.
+    pub fn relative_to(
+        &self,
+        source: usize,
+        estimate: &[Se2],
+        targets: &[usize],
+    ) -> Vec<Option<Matrix3<f64>>> {
+        let best = self.search(source, estimate, Some(targets));
+        targets
+            .iter()
+            .map(|&t| best.get(t).copied().flatten())
+            .collect()
+    }
+
+    /// The search of [`Self::relative_from`]; with `targets`, stopped once
+    /// all of them are done (the other entries are then partial).
+    fn search(
+        &self,
+        source: usize,
+        estimate: &[Se2],
+        targets: Option<&[usize]>,
+    ) -> Vec<Option<Matrix3<f64>>> {
         let n = self.links.len();
         let mut best: Vec<Option<Matrix3<f64>>> = vec![None; n];
         let mut done = vec![false; n];
+        // Targets not done yet (all nodes: never reaches 0 before the end).
+        let mut wanted = vec![targets.is_none(); n];
+        let mut remaining = match targets {
+            None => usize::MAX,
+            Some(targets) => {
+                let mut count = 0;
+                for &t in targets.iter().filter(|&&t| t < n) {
+                    count += usize::from(!wanted[t]);
+                    wanted[t] = true;
+                }
+                count
+            }
+        };
+        if remaining == 0 {
+            return best;
+        }
         let mut heap = BinaryHeap::new();
         best[source] = Some(Matrix3::zeros());
         heap.push(Entry {
@@ -181,6 +226,12 @@ impl LinkGraph {
                 continue;
             }
             done[node] = true;
+            if wanted[node] && targets.is_some() {
+                remaining -= 1;
+                if remaining == 0 {
+                    break;
+                }
+            }
             let cov_u = best[node].expect("set before pushing");
             let source_from_u = estimate[source].between(&estimate[node]);
             for link in &self.links[node] {
@@ -287,6 +338,12 @@ mod tests {
         assert!((after - 2.16e-4).abs() < 1e-12, "{after}");
         // Node 2 is two steps from either end.
         assert!(translation_trace(&with_loop[2].unwrap()) < 0.041);
+        // Asked for a few nodes, the search gives their covariances alone,
+        // the same.
+        let few = g.relative_to(4, &estimate, &[2, 0, 9, 2]);
+        assert_eq!(few, [with_loop[2], with_loop[0], None, with_loop[2]]);
+        assert_eq!(g.relative_to(4, &estimate, &[4]), [Some(Matrix3::zeros())]);
+        assert!(g.relative_to(4, &estimate, &[]).is_empty());
         g.remove(0, 4);
         let removed = g.relative_from(4, &estimate);
         assert!((translation_trace(&removed[0].unwrap()) - before).abs() < 1e-12);

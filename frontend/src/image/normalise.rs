@@ -51,6 +51,12 @@ impl Profiles {
 }
 
 impl<V> Profiles<V> {
+    /// The values of every bin, flat (beam after beam): to reuse their
+    /// buffer.
+    pub fn into_values(self) -> Vec<V> {
+        self.values
+    }
+
     /// The normalised bins of beam `j` (possibly fewer than the raw beam's
     /// when `max_range_m` cut it).
     pub fn beam(&self, j: usize) -> &[V] {
@@ -113,6 +119,39 @@ impl CodedProfiles {
         self.codes.values.capacity()
             + self.codes.offsets.capacity() * std::mem::size_of::<usize>()
             + std::mem::size_of::<[f32; 256]>()
+    }
+
+    /// Each bin's value next to the same bin's value in `other`, or `None`
+    /// when their beams do not have the same numbers of bins: the
+    /// [`Profiles::paired`] of both [`Self::decoded`], without the two
+    /// `f32` copies.
+    pub fn paired(&self, other: &CodedProfiles) -> Option<Profiles<[f32; 2]>> {
+        self.paired_in(other, Vec::new())
+    }
+
+    /// [`Self::paired`], its values written into `buffer` (cleared first),
+    /// whose allocation it reuses ([`Profiles::into_values`] gives it
+    /// back). `buffer` is dropped when the beams differ.
+    pub fn paired_in(
+        &self,
+        other: &CodedProfiles,
+        mut buffer: Vec<[f32; 2]>,
+    ) -> Option<Profiles<[f32; 2]>> {
+        if self.codes.offsets != other.codes.offsets {
+            return None;
+        }
+        buffer.clear();
+        buffer.extend(
+            self.codes
+                .values
+                .iter()
+                .zip(&other.codes.values)
+                .map(|(&a, &b)| [self.value(a), other.value(b)]),
+        );
+        Some(Profiles {
+            offsets: self.codes.offsets.clone(),
+            values: buffer,
+        })
     }
 
     /// The values as `f32` profiles.

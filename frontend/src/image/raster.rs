@@ -361,7 +361,20 @@ pub fn rasterise_pair(
             rasterise(beams, poses, b, cell_m, config)?,
         ));
     };
-    let lines = beam_lines(beams, poses, &paired);
+    rasterise_paired(beams, poses, &paired, cell_m, config)
+}
+
+/// [`rasterise_pair`] of the two versions paired bin by bin
+/// ([`Profiles::paired`]): the grid of the first values and the grid of
+/// the second.
+pub fn rasterise_paired(
+    beams: &[SonarBeam],
+    poses: &[Se2],
+    paired: &Profiles<[f32; 2]>,
+    cell_m: f64,
+    config: &ImageConfig,
+) -> Result<(Grid, Grid), FrontendError> {
+    let lines = beam_lines(beams, poses, paired);
     let frame = covering_frame(&lines, cell_m)?;
     let n = frame.cells();
     let mut painter = Painter::<[f32; 2]>::new(&frame, config);
@@ -377,7 +390,7 @@ pub fn rasterise_pair(
                     buffer.resize(n, u64::MAX);
                 }
                 let mut acc = ClosestPair { best, second };
-                painter.paint(&lines, &paired, &mut acc);
+                painter.paint(&lines, paired, &mut acc);
                 let values = |keys: &[u64]| keys.iter().map(|&key| closest_value(key)).collect();
                 (frame.grid(values(acc.best)), frame.grid(values(acc.second)))
             })
@@ -393,7 +406,7 @@ pub fn rasterise_pair(
                 sum_count,
                 second_sum,
             };
-            painter.paint(&lines, &paired, &mut acc);
+            painter.paint(&lines, paired, &mut acc);
             let values_a = acc.sum_count.iter().map(|&[sum, count]| mean(sum, count));
             let values_b = (acc.second_sum.iter().zip(acc.sum_count.iter()))
                 .map(|(&sum, &[_, count])| mean(sum, count));

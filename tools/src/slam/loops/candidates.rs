@@ -39,7 +39,8 @@ impl LoopCloser<'_> {
         if overlaps.is_empty() {
             return Vec::new();
         }
-        let path = estimate.links().relative_from(k, poses);
+        let targets: Vec<usize> = overlaps.iter().map(|&(j, _)| j).collect();
+        let paths = estimate.links().relative_to(k, poses, &targets);
         // The best-overlapping candidates that can be searched now, and as
         // many again of those too uncertain for now (deferred).
         let (mut ready, mut waiting) = (Vec::new(), Vec::new());
@@ -49,8 +50,8 @@ impl LoopCloser<'_> {
         // is taken.
         let taken =
             |list: &Vec<Candidate>, j: usize| list.iter().any(|c| self.cover.near(c.from, j, s));
-        for (j, overlap) in overlaps {
-            let c = self.candidate(j, k, overlap, path[j].as_ref(), poses);
+        for ((j, overlap), path) in overlaps.into_iter().zip(&paths) {
+            let c = self.candidate(j, k, overlap, path.as_ref(), poses);
             if !c.too_uncertain(&self.config.gate.max_window) {
                 if ready.len() < max && !taken(&ready, j) {
                     ready.push(c);

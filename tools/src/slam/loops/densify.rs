@@ -118,9 +118,10 @@ impl LoopCloser<'_> {
             if pairs.is_empty() {
                 continue;
             }
-            let path = estimate.links().relative_from(k, poses);
-            for (j, overlap) in pairs {
-                let mut c = self.candidate(j, k, overlap, path[j].as_ref(), poses);
+            let targets: Vec<usize> = pairs.iter().map(|&(j, _)| j).collect();
+            let paths = estimate.links().relative_to(k, poses, &targets);
+            for ((j, overlap), path) in pairs.into_iter().zip(&paths) {
+                let mut c = self.candidate(j, k, overlap, path.as_ref(), poses);
                 if c.too_uncertain(&densify_max_window()) {
                     continue;
                 }
@@ -176,7 +177,8 @@ impl LoopCloser<'_> {
 
     /// The records of `candidates`, in their order, matched in batches of
     /// [`DENSIFY_BATCH`] pairs (each batch in parallel) taken in place order
-    /// ([`place_order`] of the older nodes at `poses`), with the image
+    /// ([`place_order`] of the older nodes at `poses`, the places whose
+    /// images are held now first), with the image
     /// residency's budget enforced after each batch: the images of a place
     /// are read while its pairs are matched, so a released image is built
     /// again about once per round instead of once per pass over its place.
@@ -190,7 +192,8 @@ impl LoopCloser<'_> {
         poses: &[Se2],
     ) -> Result<Vec<LoopRecord>, SlamError> {
         let pairs: Vec<(usize, usize)> = candidates.iter().map(|c| (c.from, c.to)).collect();
-        let order = place_order(&pairs, poses, PLACE_RADIUS_M);
+        let held = |i: usize| nodes.get(i).is_some_and(|n| n.image.is_resident());
+        let order = place_order(&pairs, poses, PLACE_RADIUS_M, held);
         let mut records: Vec<Option<LoopRecord>> = (0..candidates.len()).map(|_| None).collect();
         for batch in order.chunks(DENSIFY_BATCH) {
             let matched: Vec<&Candidate> = batch.iter().map(|&q| &candidates[q]).collect();
