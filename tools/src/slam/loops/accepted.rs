@@ -164,6 +164,11 @@ mod tests {
 
     #[test]
     fn loops_joining_the_same_two_places_share_their_weight() {
+        use echofield_frontend::loops::checks::Candidate;
+        use echofield_frontend::matcher::SearchWindow;
+        use echofield_graph::Se2;
+        use nalgebra::Matrix3;
+
         let config = LoopConfig::default();
         let matcher = MatcherConfig::default();
         let mut closer = closer_on_a_line(&config, &matcher);
@@ -179,6 +184,22 @@ mod tests {
             ids: vec![7, 8, 9],
             exact: true,
         };
+        // Records for the edges' metadata: ids 0-9.
+        closer.records = (0..10)
+            .map(|i| {
+                let candidate = Candidate {
+                    from: i,
+                    to: i + 20,
+                    prior: Se2::identity(),
+                    prior_covariance: Matrix3::identity(),
+                    predicted_overlap: 0.8,
+                    raw_window: SearchWindow::new(1.0, 1.0, 0.1),
+                    wide: false,
+                    densify: false,
+                };
+                candidate.record(i + 20, &config)
+            })
+            .collect();
         let scale: Vec<(usize, f64)> = closer
             .accepted_edges()
             .iter()
