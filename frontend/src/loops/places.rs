@@ -10,16 +10,6 @@
 //! measurements, `1 + ρ·(m_j + m_k − 2)` (`config::DENSIFY_CORRELATION` =
 //! ρ, `m_x` the accepted loops at node `x`, or within `cover_spacing_m` of
 //! travel of it, [`super::cover`]).
-//!
-//! Loops that join the same two places ([`PlacePairs`]) share more: both
-//! images and both scans are seen from nearly the same places, so the
-//! matches repeat one measurement of one relative pose with its bias
-//! (along a quay, the match's shortening: EXPERIMENTS.md § Long missions).
-//! How many such loops a revisit holds grows with the square of the
-//! rotations per metre of track, so without the place-pair design effect
-//! a slow mission would weigh the same biased measurement many times more
-//! than a fast one; with it, every place pair weighs about as much as one
-//! loop, whatever the speed.
 
 use super::consistency::LoopMeasurement;
 use std::collections::HashMap;
@@ -93,77 +83,6 @@ impl<'a> Places<'a> {
     }
 }
 
-/// Travel, metres, within which two loop ends count as one place for the
-/// place-pair design effect ([`PlacePairs`]): nodes within 2 m of travel
-/// of each other see the same walls, at the ranges of tens of metres the
-/// matches rely on, from nearly the same place; the spacing that
-/// `echofield bench-long` gives the cover rule ([`super::cover`]).
-pub const PLACE_PAIR_SPACING_M: f64 = 2.0;
-
-/// `ρ` of the place-pair design effect: 1, the loops joining two places
-/// repeat one measurement, so together they count about as much as one loop.
-pub const PLACE_PAIR_CORRELATION: f64 = 1.0;
-
-/// The loops joining each pair of places, for the place-pair design effect
-/// `1 + ρ·(n − 1)` of a loop `(j, k)`: `n` counts the loops `(j', k')`
-/// (itself included) with `|s(j) − s(j')| ≤ spacing` and `|s(k) − s(k')| ≤
-/// spacing` (ends taken in the order of `s`), `s` the distance travelled.
-pub struct PlacePairs<'a> {
-    spacing_m: f64,
-    distance_m: &'a [f64],
-    /// `(s(earlier end), s(later end))` of every loop with both ends in
-    /// `distance_m`, ascending by the first.
-    pairs: Vec<(f64, f64)>,
-}
-
-impl<'a> PlacePairs<'a> {
-    /// The place pairs of `loops`: `distance_m[i]` is the distance travelled
-    /// up to node `i`, metres (non-decreasing); `spacing_m` the travel within
-    /// which ends count as one place (0 or less: only the same nodes).
-    pub fn new<'m>(
-        spacing_m: f64,
-        distance_m: &'a [f64],
-        loops: impl Iterator<Item = &'m LoopMeasurement>,
-    ) -> Self {
-        let mut pairs: Vec<(f64, f64)> = loops.filter_map(|m| Self::ends(distance_m, m)).collect();
-        pairs.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
-        Self {
-            spacing_m: spacing_m.max(0.0),
-            distance_m,
-            pairs,
-        }
-    }
-
-    /// The distances travelled at `m`'s ends, the smaller first; `None` when
-    /// an end is past `distance_m`.
-    fn ends(distance_m: &[f64], m: &LoopMeasurement) -> Option<(f64, f64)> {
-        let (a, b) = (*distance_m.get(m.from)?, *distance_m.get(m.to)?);
-        Some((a.min(b), a.max(b)))
-    }
-
-    /// `n`: the loops joining `m`'s two places, `m` itself included (at
-    /// least 1, also for a loop not given to [`Self::new`] or with an end
-    /// past the known distances).
-    pub fn loops_between(&self, m: &LoopMeasurement) -> usize {
-        let Some((a, b)) = Self::ends(self.distance_m, m) else {
-            return 1;
-        };
-        let s = self.spacing_m;
-        let lo = self.pairs.partition_point(|p| p.0 < a - s);
-        let hi = self.pairs.partition_point(|p| p.0 <= a + s);
-        let n = self.pairs[lo..hi]
-            .iter()
-            .filter(|p| (p.1 - b).abs() <= s)
-            .count();
-        n.max(1)
-    }
-
-    /// `1 + ρ·(n − 1)` of the loop `m` ([`Self::loops_between`]).
-    pub fn design_effect(&self, m: &LoopMeasurement, rho: f64) -> f64 {
-        1.0 + rho * (self.loops_between(m) - 1) as f64
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -221,32 +140,5 @@ mod tests {
         };
         assert_eq!(effects(0.5), vec![1.5, 1.0 + 0.5 * 3.0, 1.0]);
         assert_eq!(effects(0.0), vec![1.0; 3]);
-    }
-
-    #[test]
-    fn loops_joining_the_same_two_places_count_in_their_place_pair_effect() {
-        let distance_m: Vec<f64> = (0..60).map(f64::from).collect();
-        let loops = [
-            measurement(0, 2, 30),
-            // 1 m of travel from loop 0 at both ends, given the other way round.
-            measurement(1, 31, 3),
-            // Same first place, second place 10 m away: another pair.
-            measurement(2, 2, 40),
-            // Alone.
-            measurement(3, 10, 50),
-        ];
-        let pairs = PlacePairs::new(1.5, &distance_m, loops.iter());
-        assert_eq!(pairs.loops_between(&loops[0]), 2);
-        assert_eq!(pairs.loops_between(&loops[1]), 2);
-        assert_eq!(pairs.loops_between(&loops[2]), 1);
-        assert_eq!(pairs.design_effect(&loops[0], 1.0), 2.0);
-        assert_eq!(pairs.design_effect(&loops[3], 1.0), 1.0);
-        // Spacing 0: only loops between the same two nodes share a pair.
-        let pairs = PlacePairs::new(0.0, &distance_m, loops.iter());
-        assert_eq!(pairs.loops_between(&loops[0]), 1);
-        // An end past the known distances: no inflation.
-        let pairs = PlacePairs::new(1.5, &distance_m[..20], loops.iter());
-        assert_eq!(pairs.loops_between(&loops[0]), 1);
-        assert_eq!(pairs.design_effect(&loops[0], 1.0), 1.0);
     }
 }

@@ -36,11 +36,8 @@
 //!    are its maximum clique, recomputed whenever a loop is added (so a
 //!    loop accepted early can be dropped later when the evidence turns
 //!    against it). Accepted loops become `Loop` edges with the match
-//!    covariance plus the `min_sigma` floor, inflated by the design effect
-//!    of the loops joining the same two places
-//!    ([`PlacePairs`](echofield_frontend::loops::places::PlacePairs))
-//!    ([`accepted`]); the backend's robust kernel on loop edges is the
-//!    last line of defence.
+//!    covariance plus the `min_sigma` floor ([`accepted`]); the backend's
+//!    robust kernel on loop edges is the last line of defence.
 //! 5. **Densification** ([`densify`], on by default, after the mission):
 //!    the pairs never examined whose relative pose the estimate already
 //!    knows, and those the mission rejected only for how they were

@@ -8,9 +8,7 @@ use echofield_frontend::loops::config::DENSIFY_CORRELATION;
 use echofield_frontend::loops::consistency::LoopMeasurement;
 #[cfg(doc)]
 use echofield_frontend::loops::cover;
-use echofield_frontend::loops::places::{
-    PLACE_PAIR_CORRELATION, PLACE_PAIR_SPACING_M, PlacePairs, Places,
-};
+use echofield_frontend::loops::places::Places;
 use echofield_frontend::loops::{LoopRecord, RejectReason};
 use echofield_graph::EdgeKind;
 use nalgebra::Matrix3;
@@ -34,13 +32,9 @@ impl LoopCloser<'_> {
         }
     }
 
-    /// The loop edges of the accepted set, with their covariances: every
-    /// loop's inflated by its place-pair design effect ([`PlacePairs`],
-    /// the loops joining the same two places, within `PLACE_PAIR_SPACING_M`
-    /// or the larger `cover_spacing_m`), the densified ones also by
-    /// the design effect of the loops at their nodes
-    /// (`loops::config::DENSIFY_CORRELATION`). The two count different
-    /// shared errors: one end's scan or image, and the whole relative pose.
+    /// The loop edges of the accepted set, with their covariances: the
+    /// clique's loops as matched, the densified ones inflated by their
+    /// design effect (`loops::config::DENSIFY_CORRELATION`).
     pub(super) fn accepted_edges(&self) -> Vec<(usize, echofield_graph::Edge, Matrix3<f64>)> {
         let primary: Vec<&LoopMeasurement> = self
             .accepted
@@ -53,11 +47,6 @@ impl LoopCloser<'_> {
             self.chain.distances(),
             primary.iter().copied().chain(&self.dense),
         );
-        let pairs = PlacePairs::new(
-            PLACE_PAIR_SPACING_M.max(self.config.cover_spacing_m),
-            self.chain.distances(),
-            primary.iter().copied().chain(&self.dense),
-        );
         let rho = DENSIFY_CORRELATION;
         let inflations = self.dense.iter().map(|m| places.design_effect(m, rho));
         primary
@@ -66,7 +55,6 @@ impl LoopCloser<'_> {
             .chain(self.dense.iter().zip(inflations))
             .filter_map(|(m, inflation)| {
                 let id = m.id;
-                let inflation = inflation * pairs.design_effect(m, PLACE_PAIR_CORRELATION);
                 let covariance = m.covariance * inflation;
                 let metadata = loop_metadata(&self.records[id]);
                 let edge =
@@ -160,52 +148,5 @@ mod tests {
         closer.accepted.ids.clear();
         closer.refresh_cover();
         assert!(!closer.cover.covers(4, 26, &s));
-    }
-
-    #[test]
-    fn loops_joining_the_same_two_places_share_their_weight() {
-        use echofield_frontend::loops::checks::Candidate;
-        use echofield_frontend::matcher::SearchWindow;
-        use echofield_graph::Se2;
-        use nalgebra::Matrix3;
-
-        let config = LoopConfig::default();
-        let matcher = MatcherConfig::default();
-        let mut closer = closer_on_a_line(&config, &matcher);
-        let chain = closer.chain.clone();
-        // Nodes 1 m apart: loops 7 and 8 join the same two places (within
-        // PLACE_PAIR_SPACING_M at both ends), loop 9 joins two others.
-        for (id, from, to) in [(7, 3, 25), (8, 4, 26), (9, 10, 35)] {
-            closer
-                .consistency
-                .add(measurement(id, from, to), &chain, CONSISTENCY_MAX_CHI2);
-        }
-        closer.accepted = Clique {
-            ids: vec![7, 8, 9],
-            exact: true,
-        };
-        // Records for the edges' metadata: ids 0-9.
-        closer.records = (0..10)
-            .map(|i| {
-                let candidate = Candidate {
-                    from: i,
-                    to: i + 20,
-                    prior: Se2::identity(),
-                    prior_covariance: Matrix3::identity(),
-                    predicted_overlap: 0.8,
-                    raw_window: SearchWindow::new(1.0, 1.0, 0.1),
-                    wide: false,
-                    densify: false,
-                };
-                candidate.record(i + 20, &config)
-            })
-            .collect();
-        let scale: Vec<(usize, f64)> = closer
-            .accepted_edges()
-            .iter()
-            .map(|(id, _, covariance)| (*id, covariance[(0, 0)]))
-            .collect();
-        // The fixtures' match covariance is the identity.
-        assert_eq!(scale, vec![(7, 2.0), (8, 2.0), (9, 1.0)]);
     }
 }
