@@ -72,8 +72,14 @@ pub struct LocalizationConfig {
     /// Gaussian smoothing of the likelihood field, m (widens the basin of
     /// the score against the particles' spacing and the map's errors).
     pub field_smoothing_m: f64,
-    /// How the map's node images combine where they overlap in the field.
+    /// How the map's node images combine where they overlap in the field
+    /// the particles are weighed on and the scans' fit is judged on
+    /// (`min_fit`, the state).
     pub field_blend: FieldBlend,
+    /// How they combine in the field the estimate is refined on
+    /// (`estimate = "refined"`); when it equals `field_blend`, one field
+    /// serves both.
+    pub refine_blend: FieldBlend,
     /// Field value of a scan point that falls where the map's sonar never
     /// looked (neither evidence for nor against a pose), 0-1.
     pub unknown_value: f64,
@@ -108,7 +114,7 @@ pub struct LocalizationConfig {
     pub refine_max_shift_m: f64,
 }
 
-/// [`LocalizationConfig::field_blend`].
+/// [`LocalizationConfig::field_blend`] and [`LocalizationConfig::refine_blend`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum FieldBlend {
@@ -148,6 +154,7 @@ impl Default for LocalizationConfig {
             field_cell_m: 0.25,
             field_smoothing_m: 0.15,
             field_blend: FieldBlend::Max,
+            refine_blend: FieldBlend::Mean,
             unknown_value: 0.1,
             motion_noise_scale: 1.0,
             motion_noise_floor_m: 0.03,
@@ -157,7 +164,7 @@ impl Default for LocalizationConfig {
             min_coverage: 0.3,
             lost_after_rotations: 3,
             estimate: Estimate::Refined,
-            refine_max_shift_m: 0.5,
+            refine_max_shift_m: 1.0,
         }
     }
 }

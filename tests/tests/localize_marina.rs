@@ -23,12 +23,18 @@ use echofield_graph::Se2;
 use echofield_tests::prior_map_of_run;
 use std::sync::OnceLock;
 
-/// ATE bound after convergence, m. The issue asks for 0.3 m; the whole
-/// missions of seeds 2-10 measure 0.287-0.364, mean 0.316, with the
-/// refined estimate (EXPERIMENTS.md § Where the marina's error comes
-/// from), bounded by the map's own error (seed 1's run: 0.229 m) plus the
-/// mosaic's disagreement with any single node.
-const MAX_ATE_M: f64 = 0.35;
+/// ATE bound after convergence, m: the issue's 0.3 m. The seeds tested
+/// here (2 and 3) meet it with the estimate refined on the mean blend;
+/// seeds 6 and 8 do not (EXPERIMENTS.md § The estimate refined on the
+/// mean blend), the map's own error (seed 1's run: 0.229 m) being the
+/// floor.
+const MAX_ATE_M: f64 = 0.3;
+
+/// ATE bound after the recovery from a kidnapping, m: the bound all these
+/// tests had before the estimate was refined on the mean blend (the
+/// kidnapped seed 2 then measures above 0.3 m: EXPERIMENTS.md § The
+/// estimate refined on the mean blend).
+const MAX_ATE_KIDNAPPED_M: f64 = 0.35;
 
 /// `mission` from its first record to `duration_s` later.
 fn truncated(mission: &Mission, duration_s: f64) -> Mission {
@@ -162,6 +168,7 @@ fn missions_of_other_seeds_converge_from_an_unknown_start_and_hold_the_ate() {
             .collect();
         assert!(after.len() > 30, "seed {seed}: {} rotations", after.len());
         let ate = rmse(&after);
+        println!("marina seed {seed}: converged at rotation {converged}, ATE after {ate:.3} m");
         assert!(
             ate <= MAX_ATE_M,
             "seed {seed}: ATE after convergence {ate:.3} m"
@@ -241,7 +248,14 @@ fn a_kidnapping_in_mid_mission_is_detected_and_recovered_within_ten_rotations() 
         .copied()
         .collect();
     let ate = rmse(&after);
-    assert!(ate <= MAX_ATE_M, "ATE after the recovery {ate:.3} m");
+    println!(
+        "kidnapped marina 2: lost {lost} and relocalised {} rotations after the kidnapping, ATE after {ate:.3} m",
+        relocalised - kidnap
+    );
+    assert!(
+        ate <= MAX_ATE_KIDNAPPED_M,
+        "ATE after the recovery {ate:.3} m"
+    );
     // The report counts the recovery.
     let report = build_report(&localized, map, "map", &LocalizationConfig::default(), None);
     assert_eq!(report.recoveries.len(), 1, "{:?}", report.recoveries);

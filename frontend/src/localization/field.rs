@@ -7,6 +7,14 @@
 //! by a high quantile of its covered cells (clamped to 1), so that the
 //! scale of the score does not depend on how bright one map was.
 //!
+//! It may hold a second raster over the same cells, the field the
+//! estimate is *refined* on ([`LikelihoodField::with_refine_raster`]),
+//! e.g. the node images blended by their mean where the field the
+//! particles are weighed and judged on takes their max: the particles
+//! (which place does the scan fit, and does it fit at all?) and the
+//! estimate (where exactly in that place?) then come from the blend that
+//! suits each. Without it, one raster serves both.
+//!
 //! Beside the values it keeps the *coverage*: the cells within the
 //! footprint of some map node, where the map's sonar looked. A scan point
 //! outside the coverage is neither evidence for nor against a pose (the
@@ -38,7 +46,13 @@ pub struct FieldScore {
 /// The map's likelihood field (see the module doc).
 #[derive(Clone, Debug)]
 pub struct LikelihoodField {
+    /// The field the particles are weighed and the scans' fit judged on
+    /// ([`Self::score`]).
     values: Grid,
+    /// The field the estimate is refined on ([`Self::refine_score`]), when
+    /// it differs from `values`: the same raster geometry, smoothed and
+    /// normalised the same way.
+    refine: Option<Grid>,
     covered: Vec<bool>,
     /// Indices of the covered cells, row-major, for sampling poses over
     /// the whole map.
@@ -90,14 +104,49 @@ impl LikelihoodField {
         normalise(&mut map, &covered);
         Ok(Self {
             values: map,
+            refine: None,
             covered,
             covered_cells,
         })
     }
 
-    /// The field's values (0-1), world frame.
+    /// The same field with `map` as the raster the estimate is refined on
+    /// ([`Self::refine_score`]), smoothed by `smoothing_m` and normalised
+    /// over the same coverage as the particles' one.
+    ///
+    /// Errors: `map` not on the particles' raster (origin, cell size,
+    /// width and height).
+    pub fn with_refine_raster(
+        mut self,
+        mut map: Grid,
+        smoothing_m: f64,
+    ) -> Result<Self, FrontendError> {
+        let same_raster = map.origin_m() == self.values.origin_m()
+            && map.cell_size_m() == self.values.cell_size_m()
+            && map.width() == self.values.width()
+            && map.height() == self.values.height();
+        if !same_raster {
+            return Err(FrontendError::input(
+                "map",
+                "acoustic images",
+                "the refine raster differs from the particles' raster",
+            ));
+        }
+        map.smooth_gaussian(smoothing_m / map.cell_size_m());
+        normalise(&mut map, &self.covered);
+        self.refine = Some(map);
+        Ok(self)
+    }
+
+    /// The values the particles are weighed on (0-1), world frame.
     pub fn grid(&self) -> &Grid {
         &self.values
+    }
+
+    /// The values the estimate is refined on (0-1, world frame): the
+    /// refine raster when there is one, else [`Self::grid`].
+    pub fn refine_grid(&self) -> &Grid {
+        self.refine.as_ref().unwrap_or(&self.values)
     }
 
     /// Whether the cell `(ix, iy)` lies in the map's coverage.
@@ -117,11 +166,36 @@ impl LikelihoodField {
         self.covered_cells.len() as f64 * c * c
     }
 
-    /// Eq. (5) of `points` (vehicle frame) placed by `world_from_vehicle`,
-    /// with `unknown` for the points outside the coverage. Every
-    /// `stride`-th point (at least 1).
+    /// Eq. (5) of `points` (vehicle frame) placed by `world_from_vehicle`
+    /// on the particles' field, with `unknown` for the points outside the
+    /// coverage. Every `stride`-th point (at least 1).
     pub fn score(
         &self,
+        world_from_vehicle: &Se2,
+        points: &[Point2<f64>],
+        stride: usize,
+        unknown: f64,
+    ) -> FieldScore {
+        self.score_on(&self.values, world_from_vehicle, points, stride, unknown)
+    }
+
+    /// [`Self::score`] on the field the estimate is refined on
+    /// ([`Self::refine_grid`]).
+    pub fn refine_score(
+        &self,
+        world_from_vehicle: &Se2,
+        points: &[Point2<f64>],
+        stride: usize,
+        unknown: f64,
+    ) -> FieldScore {
+        let grid = self.refine_grid();
+        self.score_on(grid, world_from_vehicle, points, stride, unknown)
+    }
+
+    /// Eq. (5) on `grid` (the particles' or the refine raster).
+    fn score_on(
+        &self,
+        grid: &Grid,
         world_from_vehicle: &Se2,
         points: &[Point2<f64>],
         stride: usize,
@@ -134,10 +208,10 @@ impl LikelihoodField {
             let x = tx + c * p.x - s * p.y;
             let y = ty + s * p.x + c * p.y;
             total += 1;
-            let (ix, iy) = self.values.cell_of(x, y);
+            let (ix, iy) = grid.cell_of(x, y);
             if self.is_covered_cell(ix, iy) {
                 inside += 1;
-                sum_inside += self.values.bilinear(x, y);
+                sum_inside += grid.bilinear(x, y);
             }
         }
         if total == 0 {
@@ -245,6 +319,42 @@ mod tests {
         assert!((area - std::f64::consts::PI * 64.0).abs() < 2.0, "{area}");
         assert!(field.is_covered_cell(40, 40));
         assert!(!field.is_covered_cell(0, 0));
+    }
+
+    #[test]
+    fn the_refine_score_reads_the_refine_raster_and_the_score_the_other() {
+        // The particles' field: the wall at x = 5 m; the refine raster: a
+        // wall at x = 3 m.
+        let mut other = Grid::zeros(-10.0, -10.0, 0.25, 80, 80);
+        let w = other.width();
+        for iy in 0..80 {
+            other.values_mut()[iy * w + 52] = 0.5; // x in [3, 3.25)
+        }
+        let field = wall_field().with_refine_raster(other, 0.0).unwrap();
+        let points: Vec<Point2<f64>> = (-4..=4).map(|i| Point2::new(5.125, f64::from(i))).collect();
+        let at_5 = Se2::identity();
+        let at_3 = Se2::new(-2.0, 0.0, 0.0);
+        assert!((field.score(&at_5, &points, 1, 0.1).fit - 1.0).abs() < 1e-9);
+        assert!(field.score(&at_3, &points, 1, 0.1).fit < 1e-9);
+        // Normalised over the coverage like the other: 0.5 maps to 1.
+        assert!((field.refine_score(&at_3, &points, 1, 0.1).fit - 1.0).abs() < 1e-9);
+        assert!(field.refine_score(&at_5, &points, 1, 0.1).fit < 1e-9);
+        // Without a refine raster, both scores read the one field.
+        let one = wall_field();
+        assert_eq!(
+            one.refine_score(&at_5, &points, 1, 0.1),
+            one.score(&at_5, &points, 1, 0.1)
+        );
+    }
+
+    #[test]
+    fn a_refine_raster_of_another_geometry_is_an_error() {
+        let other = Grid::zeros(-10.0, -10.0, 0.25, 79, 80);
+        let err = wall_field()
+            .with_refine_raster(other, 0.0)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("raster"), "{err}");
     }
 
     #[test]

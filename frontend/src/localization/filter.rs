@@ -15,7 +15,8 @@
 //! 3. **Judge**: the scan's fit and coverage at the weighted mean and the
 //!    cloud's spread set the state ([`LocalizationState`]); the estimate is
 //!    the weighted mean, by default refined to the nearest peak of the
-//!    scan's score on the map when localised ([`super::refine`]).
+//!    scan's score on the map when localised ([`super::refine`], on the
+//!    field's refine raster, [`LikelihoodField::refine_score`]).
 //! 4. **Resample** by KLD sampling ([`super::particles::kld_resample`]);
 //!    when the scans have stopped fitting a converged cloud for
 //!    `lost_after_rotations` rotations, the particles are spread over the

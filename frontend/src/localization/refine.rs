@@ -59,11 +59,14 @@ pub struct RefineProblem<'a> {
 }
 
 impl RefineProblem<'_> {
-    /// The log-weight a particle at `pose` would get (larger is better).
+    /// The log-weight a particle at `pose` would get (larger is better),
+    /// the scan scored on the field's refine raster
+    /// ([`LikelihoodField::refine_score`]; the particles' own field when it
+    /// has none).
     pub fn log_weight(&self, pose: &Se2) -> f64 {
         let s = self
             .field
-            .score(pose, self.points, self.stride, self.unknown);
+            .refine_score(pose, self.points, self.stride, self.unknown);
         let dh = wrap_angle(pose.theta() - self.heading_rad);
         self.gain * s.mean - dh * dh / (2.0 * self.heading_sigma_rad.powi(2))
     }
@@ -228,6 +231,27 @@ mod tests {
         assert!(shift <= 0.2 + 1e-9, "moved {shift} m");
         // It moved towards the truth.
         assert!(refined.x() < 0.45, "{refined:?}");
+    }
+
+    #[test]
+    fn the_estimate_is_refined_on_the_refine_raster() {
+        // The particles' field has the walls of `field_and_scan`; the refine
+        // raster has them 0.25 m further along x (one cell): the refined
+        // estimate follows the refine raster.
+        let truth = Se2::identity();
+        let (field, scan) = field_and_scan(&truth);
+        let mut shifted = Grid::zeros(-10.0, -10.0, 0.25, 80, 80);
+        let w = shifted.width();
+        for (k, v) in field.grid().values().iter().enumerate() {
+            if k % w + 1 < w {
+                shifted.values_mut()[k + 1] = *v;
+            }
+        }
+        let field = field.with_refine_raster(shifted, 0.0).unwrap();
+        let problem = test_problem(&field, scan.as_slice(), 0.0, 1.0);
+        let refined = problem.refine(&truth);
+        assert!((refined.x() - 0.25).abs() < 0.08, "{refined:?}");
+        assert!(refined.y().abs() < 0.08, "{refined:?}");
     }
 
     #[test]

@@ -9,8 +9,10 @@
 //! become nodes of the run are left out.
 //!
 //! The images are then placed at the optimised poses in one world grid
-//! ([`build_mosaic`], blended as `field_blend` says) and turned into the likelihood
-//! field ([`LikelihoodField`]), covered within each node's footprint.
+//! ([`build_mosaic`], blended as `field_blend` says) and turned into the
+//! likelihood field ([`LikelihoodField`]), covered within each node's
+//! footprint; when `refine_blend` differs, a second mosaic so blended is
+//! the field's refine raster (the refined estimate's).
 //! Why one field rather than the node images themselves: a particle is
 //! then scored with one bilinear lookup per scan point, whatever the
 //! number of map nodes it overlaps.
@@ -20,6 +22,7 @@ use crate::slam::outputs::mosaic::{MosaicBlend, MosaicConfig, build_mosaic};
 use crate::slam::pipeline::prepare;
 use anyhow::{Context, Result, bail};
 use echofield_frontend::dead_reckoning;
+use echofield_frontend::image::Grid;
 use echofield_frontend::localization::{FieldBlend, LikelihoodField, LocalizationConfig};
 use echofield_frontend::nodes::{NodeData, Skip, build_node};
 use echofield_frontend::rotation::assemble_rotations;
@@ -142,9 +145,11 @@ fn rebuild_nodes(
     Ok(nodes)
 }
 
-/// The node images placed at their poses in one mosaic (blended as
-/// `localize.field_blend` says) and turned into the likelihood field, covered within each node's
-/// footprint.
+/// The node images placed at their poses and turned into the likelihood
+/// field, covered within each node's footprint: the particles' field
+/// blended as `localize.field_blend` says; when `localize.refine_blend`
+/// differs, a second mosaic so blended, on the first one's cells, is the
+/// field the estimate is refined on.
 fn likelihood_field(
     nodes: &[(NodeData, Se2)],
     localize: &LocalizationConfig,
@@ -155,21 +160,46 @@ fn likelihood_field(
         .map(|(n, p)| Ok((n.image.image()?, *p)))
         .collect::<Result<Vec<_>, echofield_frontend::FrontendError>>()?;
     let images: Vec<_> = resident.iter().map(|(i, p)| (i.grid(), *p)).collect();
-    let blend = match localize.field_blend {
-        FieldBlend::Max => MosaicBlend::Max,
-        FieldBlend::Mean => MosaicBlend::Mean,
+    let mosaic_config = MosaicConfig::likelihood_field(localize.field_cell_m);
+    let mosaic = |blend: FieldBlend| {
+        let blend = match blend {
+            FieldBlend::Max => MosaicBlend::Max,
+            FieldBlend::Mean => MosaicBlend::Mean,
+        };
+        build_mosaic(
+            &images,
+            &MosaicConfig {
+                blend,
+                ..mosaic_config.clone()
+            },
+        )
     };
-    let mosaic_config = MosaicConfig {
-        blend,
-        ..MosaicConfig::likelihood_field(localize.field_cell_m)
-    };
-    let mosaic = build_mosaic(&images, &mosaic_config)?;
+    let particles = mosaic(localize.field_blend)?;
+    let refine = (localize.refine_blend != localize.field_blend)
+        .then(|| mosaic(localize.refine_blend).map(|m| on_raster_of(&m, &particles)))
+        .transpose()?;
     let footprints: Vec<(Se2, f64)> = nodes.iter().map(|(n, p)| (*p, n.footprint_m)).collect();
-    Ok(LikelihoodField::new(
-        mosaic,
-        &footprints,
-        localize.field_smoothing_m,
-    )?)
+    let field = LikelihoodField::new(particles, &footprints, localize.field_smoothing_m)?;
+    Ok(match refine {
+        Some(r) => field.with_refine_raster(r, localize.field_smoothing_m)?,
+        None => field,
+    })
+}
+
+/// `source` resampled (nearest cell) onto the raster of `like` (0 where
+/// `source` has no cell). The mosaics of one map share the cell size and
+/// the lattice; only their crops differ (each is cropped to its own
+/// echoes), so this copies cells.
+fn on_raster_of(source: &Grid, like: &Grid) -> Grid {
+    let (x0, y0) = like.origin_m();
+    let mut out = Grid::zeros(x0, y0, like.cell_size_m(), like.width(), like.height());
+    let width = like.width();
+    for (k, v) in out.values_mut().iter_mut().enumerate() {
+        let (cx, cy) = like.cell_centre_m((k % width) as i64, (k / width) as i64);
+        let (ix, iy) = source.cell_of(cx, cy);
+        *v = source.cell(ix, iy);
+    }
+    out
 }
 
 /// The pose of `trajectory` stamped within [`STAMP_MATCH_S`] of `stamp_s`.
