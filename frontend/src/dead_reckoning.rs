@@ -310,10 +310,10 @@ impl DeadReckoningConfig {
         Ok(())
     }
 
-    /// No noise beyond what the quantity can be: the covariances such
-    /// noises make overflow the filter's arithmetic (a DVL noise of 1e9 m/s
-    /// spread a tank mission's beams over 1e12 m; a heading noise of 1e9
-    /// rad made the odometry's information matrix indefinite).
+    /// No noise beyond what the quantity can be: beyond these bounds the
+    /// covariances overflow the filter's arithmetic (the motion
+    /// compensation then spreads the beams over absurd distances, and the
+    /// odometry's information matrix can turn indefinite).
     fn check_upper_bounds(&self) -> Result<(), FrontendError> {
         let upper = [
             (

@@ -160,13 +160,15 @@ pub enum FixPrior {
 
 impl FixPrior {
     /// Of a mission with `fixes` fixes and `placement` (`None`: the
-    /// anchor); `None` without fixes.
-    fn of(fixes: usize, placement: Option<&Placement>) -> Option<Self> {
+    /// anchor, whose fixes served only if `any_prior`, another mission
+    /// having got a prior from them); `None` without fixes.
+    fn of(fixes: usize, placement: Option<&Placement>, any_prior: bool) -> Option<Self> {
         if fixes == 0 {
             return None;
         }
         Some(match placement {
-            None => FixPrior::Map,
+            None if any_prior => FixPrior::Map,
+            None => FixPrior::Unused,
             Some(p) => match &p.prior {
                 None => FixPrior::Unused,
                 Some(check) if check.consistent => FixPrior::Confirmed,
@@ -311,20 +313,15 @@ pub fn combine_with_fixes(
         merged,
     };
     fill_report(&mut output);
-    for (report, &count) in output.report.missions.iter_mut().zip(&fix_counts) {
-        report.position_fixes = count;
-        report.fix_prior = FixPrior::of(count, output.placements[report.mission - 1].as_ref());
-    }
-    // The anchor's fixes served only if another mission got a prior.
-    let priors = output
+    let any_prior = output
         .placements
         .iter()
         .flatten()
         .any(|p| p.prior.is_some());
-    for report in &mut output.report.missions {
-        if report.fix_prior == Some(FixPrior::Map) && !priors {
-            report.fix_prior = Some(FixPrior::Unused);
-        }
+    for (report, &count) in output.report.missions.iter_mut().zip(&fix_counts) {
+        report.position_fixes = count;
+        let placement = output.placements[report.mission - 1].as_ref();
+        report.fix_prior = FixPrior::of(count, placement, any_prior);
     }
     output.report.time_s = start.elapsed().as_secs_f64();
     Ok(output)
