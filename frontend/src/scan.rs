@@ -226,5 +226,6 @@ fn check_beam(j: usize, beam: &SonarBeam, frame: &Se2) -> Result<(), FrontendErr
 }
 
 pub mod beam_width;
+pub mod overlap;
 #[cfg(test)]
 mod tests;

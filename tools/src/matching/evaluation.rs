@@ -6,8 +6,10 @@
 //! and config evaluated sees the same overlapping pairs (of the rotations
 //! it covers): the scans are built with the true motion
 //! within each rotation, and a pair overlaps when, with the true pose, at
-//! least `min_overlap` of the points of `S_K` lie within
-//! `overlap_radius_m` of a point of `S_J`. Consecutive pairs (`K = J + 1`)
+//! least `min_overlap` of the points of `S_K` land on the cells of side
+//! `overlap_cell_m` that hold a point of `S_J` or touch such a cell: the
+//! ground-truth scan overlap of [`echofield_frontend::scan::overlap`], the
+//! same measure as the loop recall of `echofield run`. Consecutive pairs (`K = J + 1`)
 //! and non-consecutive ones (`K ≥ J + 2`) are counted apart; at most
 //! `max_pairs_per_kind` of each are drawn with the seed from all the
 //! overlapping ones whose two rotations also have a scan with the
@@ -20,8 +22,9 @@
 //!
 //! **Constraint.** For each pair, the geometry of the overlap decides how
 //! well any scan match can be determined: with `n` the normal of `S_J` at
-//! each overlapping point (the minor principal axis of the `S_J` points
-//! within `normal_radius_m` of its nearest one), the smallest eigenvalue of
+//! each overlapping point (each point of `S_K` that lands on those cells:
+//! the minor principal axis of the `S_J` points within `normal_radius_m`
+//! of its nearest one), the smallest eigenvalue of
 //! the mean `n nᵀ` (0 when all overlapping points lie on walls of one
 //! direction, e.g. a corridor or a single quay, where the position along
 //! the walls is undetermined; 0.5 when the normals are spread evenly). The
@@ -54,6 +57,7 @@ use echofield_frontend::matcher::{MatchOutcome, SearchWindow, match_scan, mean_s
 use echofield_frontend::motion::reference_from_beams;
 use echofield_frontend::off_axis::OffAxisSuppression;
 use echofield_frontend::scan::beam_width::BeamWidthCorrection;
+use echofield_frontend::scan::overlap::ScanCells;
 use echofield_frontend::scan::{Scan, build_scan};
 use echofield_frontend::segmentation::SegmentationConfig;
 use echofield_graph::{Se2, wrap_angle};
@@ -82,7 +86,8 @@ pub struct TrialConfig {
     pub success_m: f64,
     pub success_rad: f64,
     pub min_overlap: f64,
-    pub overlap_radius_m: f64,
+    /// Cell side of the ground-truth overlap (module doc), metres.
+    pub overlap_cell_m: f64,
     /// Radius of the neighbourhood whose principal axes give the normals
     /// of the constraint measure, metres.
     pub normal_radius_m: f64,
@@ -103,7 +108,7 @@ impl Default for TrialConfig {
             success_m: 0.3,
             success_rad: 2.0_f64.to_radians(),
             min_overlap: 0.5,
-            overlap_radius_m: 0.5,
+            overlap_cell_m: 0.5,
             normal_radius_m: 1.0,
             min_constraint: 0.1,
             max_pairs_per_kind: 60,
@@ -133,7 +138,7 @@ pub struct Pair {
     pub scan: usize,
     pub image: usize,
     pub kind: PairKind,
-    /// Fraction of `S_K` within `overlap_radius_m` of `S_J` (true pose).
+    /// Ground-truth overlap of `S_K` on `S_J` (module doc).
     pub overlap: f64,
     /// The constraint measure of the module doc, 0-0.5.
     pub constraint: f64,
@@ -486,6 +491,13 @@ fn choose_pairs(
         .iter()
         .map(|s| s.as_ref().map(|s| KdTree::new(&s.points)))
         .collect();
+    let cells: Vec<Option<ScanCells>> = scans
+        .iter()
+        .map(|s| {
+            s.as_ref()
+                .map(|s| ScanCells::new(&s.points, eval.overlap_cell_m))
+        })
+        .collect();
     let mut consecutive = Vec::new();
     let mut others = Vec::new();
     for k in 0..scans.len() {
@@ -493,13 +505,13 @@ fn choose_pairs(
             if !(matchable[k] && matchable[j]) {
                 continue;
             }
-            let (Some(scan_k), Some(scan_j), Some(tree_j), Some(tk), Some(tj)) =
-                (&scans[k], &scans[j], &trees[j], truths[k], truths[j])
-            else {
+            let (Some(scan_k), Some(scan_j), Some(tree_j), Some(cells_j), Some(tk), Some(tj)) = (
+                &scans[k], &scans[j], &trees[j], &cells[j], truths[k], truths[j],
+            ) else {
                 continue;
             };
             let truth = tj.between(&tk);
-            let overlap = overlap(&scan_k.points, tree_j, &truth, eval.overlap_radius_m);
+            let overlap = cells_j.overlap(&scan_k.points, &truth);
             if overlap < eval.min_overlap {
                 continue;
             }
@@ -513,7 +525,14 @@ fn choose_pairs(
                 image: j,
                 kind,
                 overlap,
-                constraint: constraint(&scan_k.points, &scan_j.points, tree_j, &truth, eval),
+                constraint: constraint(
+                    &scan_k.points,
+                    &scan_j.points,
+                    tree_j,
+                    cells_j,
+                    &truth,
+                    eval,
+                ),
             };
             match kind {
                 PairKind::Consecutive => consecutive.push(pair),
@@ -536,11 +555,13 @@ fn choose_pairs(
 }
 
 /// The constraint measure of the module doc for `points` (scan frame)
-/// placed by `image_from_scan` on `target` (whose tree is `tree`).
+/// placed by `image_from_scan` on `target` (whose tree is `tree` and
+/// whose overlap cells are `cells`).
 fn constraint(
     points: &[Point2<f64>],
     target: &[Point2<f64>],
     tree: &KdTree,
+    cells: &ScanCells,
     image_from_scan: &Se2,
     eval: &TrialConfig,
 ) -> f64 {
@@ -548,7 +569,10 @@ fn constraint(
     let mut count = 0;
     for p in points {
         let q = image_from_scan.transform_point(p);
-        let Some((nearest, _)) = tree.nearest(&q, eval.overlap_radius_m) else {
+        if !cells.contains(q.x, q.y) {
+            continue;
+        }
+        let Some((nearest, _)) = tree.nearest(&q, eval.normal_radius_m) else {
             continue;
         };
         let around = tree.within(&target[nearest], eval.normal_radius_m);
@@ -579,22 +603,6 @@ fn constraint(
         return 0.0;
     }
     (sum / f64::from(count)).symmetric_eigenvalues().min()
-}
-
-/// Fraction of `points` (moved by `image_from_scan`) within `radius` of a
-/// point of the tree.
-fn overlap(points: &[Point2<f64>], tree: &KdTree, image_from_scan: &Se2, radius: f64) -> f64 {
-    if points.is_empty() {
-        return 0.0;
-    }
-    let hits = points
-        .iter()
-        .filter(|p| {
-            tree.nearest(&image_from_scan.transform_point(p), radius)
-                .is_some()
-        })
-        .count();
-    hits as f64 / points.len() as f64
 }
 
 /// The truth with a random error; returns the guess and the error sizes.
@@ -948,15 +956,5 @@ mod tests {
         );
         // One success is not enough for a standard error.
         assert_eq!(evaluation.bias(PairKind::Consecutive, Method::Icp), None);
-    }
-
-    #[test]
-    fn overlap_counts_points_near_the_other_scan() {
-        let a: Vec<Point2<f64>> = (0..10).map(|i| Point2::new(f64::from(i), 0.0)).collect();
-        let tree = KdTree::new(&a);
-        assert_eq!(overlap(&a, &tree, &Se2::identity(), 0.1), 1.0);
-        // Shifted by 5 along the line: half the points still fall on it.
-        assert_eq!(overlap(&a, &tree, &Se2::new(5.0, 0.0, 0.0), 0.1), 0.5);
-        assert_eq!(overlap(&a, &tree, &Se2::new(0.0, 1.0, 0.0), 0.5), 0.0);
     }
 }

@@ -421,12 +421,15 @@ pub struct EvaluationConfig {
     pub true_positive_translation_m: f64,
     /// ... and within this angle, degrees. Default 3.
     pub true_positive_rotation_deg: f64,
-    /// Scan overlap of a node pair: the fraction of the points of `S_k`,
-    /// placed in node `j`'s frame with the ground-truth relative pose, that
-    /// lie within this distance of a point of `S_j`, metres. Default 0.5.
+    /// Cell side of the ground-truth scan overlap of a node pair
+    /// ([`echofield_frontend::scan::overlap`]: the fraction of the points
+    /// of `S_k`, placed in node `j`'s frame with the ground-truth relative
+    /// pose, that land on the cells holding a point of `S_j` or touching
+    /// one), metres. Default 0.5.
     ///
     /// Not a config key (`#[serde(skip)]`: config files keep the default;
-    /// library callers may set it): the 0.5 m cell of the overlap measure, fixed so that recall figures stay comparable between runs.
+    /// library callers may set it): fixed so that recall figures stay
+    /// comparable between runs.
     #[serde(skip)]
     pub overlap_distance_m: f64,
     /// Node pairs with at least this ground-truth scan overlap (and at

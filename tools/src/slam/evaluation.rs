@@ -24,7 +24,8 @@
 //!   relative pose, that fall in a cell of side `overlap_distance_m`
 //!   holding a point of `S_j` or next to such a cell (so within about
 //!   1-2 cell sides of a point of `S_j`): the share of what `k` saw that
-//!   `j` saw too.
+//!   `j` saw too ([`echofield_frontend::scan::overlap`]; `echofield
+//!   bench-matcher` draws its pairs by the same measure).
 //! - **Recall pairs**: node pairs `(j, k)` with `k - j >=
 //!   loops.min_separation_nodes` and ground-truth scan overlap at least
 //!   `recall_min_overlap` (default 0.4, the lowest overlap at which a
@@ -62,7 +63,7 @@ use crate::eval::{Alignment, ate, cumulative_distance, rpe};
 use crate::matching::ground_truth_at;
 use echofield_frontend::loops::{LoopRecord, RejectReason};
 use echofield_frontend::nodes::NodeData;
-use echofield_frontend::scan::Scan;
+use echofield_frontend::scan::overlap::ScanCells;
 use echofield_frontend::sensors::GroundTruthPose;
 use echofield_graph::Se2;
 use echofield_graph::io::TrajectoryPose;
@@ -132,8 +133,9 @@ struct PairTruth<'a> {
     /// Ground-truth pose per node (`None` outside the ground truth).
     poses: Vec<Option<Se2>>,
     node_data: &'a [NodeData],
-    /// Each node's scan as occupied cells (overlap of the module doc).
-    grids: Vec<OccupancyGrid>,
+    /// Each node's scan as occupied cells (overlap of the module doc,
+    /// [`echofield_frontend::scan::overlap`]).
+    grids: Vec<ScanCells>,
 }
 
 impl<'a> PairTruth<'a> {
@@ -143,7 +145,7 @@ impl<'a> PairTruth<'a> {
             node_data,
             grids: node_data
                 .iter()
-                .map(|n| OccupancyGrid::new(&n.scan, cell_m))
+                .map(|n| ScanCells::new(&n.scan.points, cell_m))
                 .collect(),
         }
     }
@@ -161,7 +163,7 @@ impl<'a> PairTruth<'a> {
         if j_from_k.translation().norm() > reach {
             return Some(0.0);
         }
-        Some(self.grids[j].overlap(&self.node_data[k].scan, &j_from_k))
+        Some(self.grids[j].overlap(&self.node_data[k].scan.points, &j_from_k))
     }
 }
 
@@ -440,73 +442,6 @@ fn trajectory_errors(
     report.distance_travelled_m = cumulative_distance(&path).last().copied();
 }
 
-/// The cells of side `cell_m` holding a point of a scan, dilated by one
-/// cell (a dense bitmap over the scan's bounding box).
-struct OccupancyGrid {
-    cell_m: f64,
-    origin: (i64, i64),
-    width: i64,
-    height: i64,
-    occupied: Vec<bool>,
-}
-
-impl OccupancyGrid {
-    fn new(scan: &Scan, cell_m: f64) -> Self {
-        let cells: Vec<(i64, i64)> = scan
-            .points
-            .iter()
-            .map(|p| ((p.x / cell_m).floor() as i64, (p.y / cell_m).floor() as i64))
-            .collect();
-        let min_x = cells.iter().map(|c| c.0).min().unwrap_or(0) - 1;
-        let min_y = cells.iter().map(|c| c.1).min().unwrap_or(0) - 1;
-        let max_x = cells.iter().map(|c| c.0).max().unwrap_or(0) + 1;
-        let max_y = cells.iter().map(|c| c.1).max().unwrap_or(0) + 1;
-        let (width, height) = (max_x - min_x + 1, max_y - min_y + 1);
-        let mut occupied = vec![false; (width * height) as usize];
-        for (cx, cy) in cells {
-            for dy in -1..=1 {
-                for dx in -1..=1 {
-                    let (x, y) = (cx + dx - min_x, cy + dy - min_y);
-                    occupied[(y * width + x) as usize] = true;
-                }
-            }
-        }
-        Self {
-            cell_m,
-            origin: (min_x, min_y),
-            width,
-            height,
-            occupied,
-        }
-    }
-
-    fn contains(&self, x_m: f64, y_m: f64) -> bool {
-        let x = (x_m / self.cell_m).floor() as i64 - self.origin.0;
-        let y = (y_m / self.cell_m).floor() as i64 - self.origin.1;
-        x >= 0
-            && y >= 0
-            && x < self.width
-            && y < self.height
-            && self.occupied[(y * self.width + x) as usize]
-    }
-
-    /// Fraction of `scan`'s points that land on the grid under `pose`.
-    fn overlap(&self, scan: &Scan, pose: &Se2) -> f64 {
-        if scan.is_empty() || self.occupied.is_empty() {
-            return 0.0;
-        }
-        let hits = scan
-            .points
-            .iter()
-            .filter(|p| {
-                let (x, y) = pose.transform_xy(p.x, p.y);
-                self.contains(x, y)
-            })
-            .count();
-        hits as f64 / scan.len() as f64
-    }
-}
-
 /// The definitions of the evaluation numbers, for `report.json`.
 fn definitions(config: &SlamConfig) -> BTreeMap<String, String> {
     let e = &config.evaluation;
@@ -535,37 +470,6 @@ fn definitions(config: &SlamConfig) -> BTreeMap<String, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use nalgebra::Point2;
-
-    fn scan(points: Vec<Point2<f64>>) -> Scan {
-        let n = points.len();
-        Scan {
-            reference_stamp_s: 0.0,
-            points,
-            intensities: vec![100.0; n],
-            beam_indices: (0..n as u32).collect(),
-            range_corrections_m: Vec::new(),
-        }
-    }
-
-    #[test]
-    fn overlap_of_a_wall_seen_twice() {
-        // A wall along y = 5 from x = 0 to 20 m, one point per 0.1 m.
-        let wall: Vec<Point2<f64>> = (0..200).map(|i| Point2::new(i as f64 * 0.1, 5.0)).collect();
-        let grid = OccupancyGrid::new(&scan(wall.clone()), 0.5);
-        // The same wall from the same place: all of it.
-        assert_eq!(grid.overlap(&scan(wall.clone()), &Se2::identity()), 1.0);
-        // From 10 m further along x: half of it lies beyond the end.
-        let k_points: Vec<Point2<f64>> = wall.iter().map(|p| Point2::new(p.x, p.y)).collect();
-        let half = grid.overlap(&scan(k_points.clone()), &Se2::new(10.0, 0.0, 0.0));
-        assert!((half - 0.5).abs() < 0.03, "{half}");
-        // Placed 3 m off the wall: nothing.
-        assert_eq!(grid.overlap(&scan(k_points), &Se2::new(0.0, 3.0, 0.0)), 0.0);
-        // An empty scan overlaps nothing and is overlapped by nothing.
-        let empty = OccupancyGrid::new(&scan(Vec::new()), 0.5);
-        assert_eq!(empty.overlap(&scan(wall.clone()), &Se2::identity()), 0.0);
-        assert_eq!(grid.overlap(&scan(Vec::new()), &Se2::identity()), 0.0);
-    }
 
     fn outcome(right: Option<bool>, rejected_by: Option<RejectReason>) -> MatchOutcome {
         MatchOutcome {
