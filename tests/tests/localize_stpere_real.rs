@@ -57,20 +57,27 @@ fn the_second_half_of_real_st_pere_localises_on_the_first_halfs_map() {
     // (estimate in the map frame, DGPS) of every rotation from the
     // convergence on that the DGPS covers: the estimate (refined on the
     // map by default) and the particles' weighted mean.
-    let pairs = |mean: bool| -> Vec<_> {
+    let smoothed = localized.smoothed.as_ref().expect("a smoothed trajectory");
+    assert_eq!(smoothed.len(), rotations.len());
+    let pairs = |which: Which| -> Vec<_> {
         rotations[converged..]
             .iter()
-            .filter_map(|r| {
+            .zip(&smoothed[converged..])
+            .filter_map(|(r, s)| {
                 let truth = ground_truth_at(&localized.ground_truth, r.stamp_s)?;
-                let e = if mean { r.step.mean } else { r.step.estimate };
+                let e = match which {
+                    Which::Estimate => r.step.estimate,
+                    Which::Mean => r.step.mean,
+                    Which::Smoothed => *s,
+                };
                 Some((e.translation(), truth.translation()))
             })
             .collect()
     };
     // Through the map's fit, and as an ATE is usually given (the
     // estimates themselves fitted onto the DGPS, as the dead reckoning is).
-    let ates = |mean: bool| {
-        let pairs = pairs(mean);
+    let ates = |which: Which| {
+        let pairs = pairs(which);
         assert!(pairs.len() >= 40, "{} rotations with DGPS", pairs.len());
         let (e, t): (Vec<_>, Vec<_>) = pairs.iter().copied().unzip();
         (
@@ -78,8 +85,9 @@ fn the_second_half_of_real_st_pere_localises_on_the_first_halfs_map() {
             rmse(&pairs, &align_se2(&e, &t)),
         )
     };
-    let (ate, ate_fitted) = ates(false);
-    let (mean_ate, mean_ate_fitted) = ates(true);
+    let (ate, ate_fitted) = ates(Which::Estimate);
+    let (mean_ate, mean_ate_fitted) = ates(Which::Mean);
+    let (smoothed_ate, smoothed_ate_fitted) = ates(Which::Smoothed);
     let report = build_report(&localized, &map, "map", &localize_config, None);
     let dead_reckoning = report.ate_rmse_dead_reckoning_m.unwrap();
     let kept = rotations[converged..]
@@ -95,7 +103,8 @@ fn the_second_half_of_real_st_pere_localises_on_the_first_halfs_map() {
         "real St Pere 61-115 on the map of 1-60: converged at rotation {converged}, \
          ATE {ate:.3} m through the map's DGPS fit, {ate_fitted:.3} m fitted, dead reckoning {dead_reckoning:.3} m, \
          {kept} of {} rotations localised or coasting, {} far from the map; \
-         the particles' mean {mean_ate:.3} m through the map's fit, {mean_ate_fitted:.3} m fitted",
+         the particles' mean {mean_ate:.3} m through the map's fit, {mean_ate_fitted:.3} m fitted; \
+         smoothed offline {smoothed_ate:.3} m through the map's fit, {smoothed_ate_fitted:.3} m fitted",
         rotations.len() - converged,
         report.rotations_far_from_map
     );
@@ -119,11 +128,37 @@ fn the_second_half_of_real_st_pere_localises_on_the_first_halfs_map() {
         ate_fitted <= mean_ate_fitted + 0.05,
         "{ate_fitted} m vs the mean's {mean_ate_fitted} m"
     );
+    // The offline smoothed trajectory (the fixes and the dead reckoning
+    // between rotations in one pose graph) meets the issue's bounds and
+    // does not undo the filter's figures (EXPERIMENTS.md gives both).
+    assert!(
+        smoothed_ate < dead_reckoning,
+        "smoothed ATE {smoothed_ate} m, dead reckoning {dead_reckoning} m"
+    );
+    assert!(
+        smoothed_ate_fitted <= 1.0,
+        "smoothed fitted ATE {smoothed_ate_fitted} m"
+    );
+    assert!(
+        smoothed_ate <= ate + 0.05 && smoothed_ate_fitted <= ate_fitted + 0.05,
+        "smoothed {smoothed_ate} / {smoothed_ate_fitted} m vs the estimates' {ate} / {ate_fitted} m"
+    );
     assert!(
         kept as f64 >= 0.9 * (rotations.len() - converged) as f64,
         "{kept} localised or coasting"
     );
     assert!(report.rotations_far_from_map > 0);
+}
+
+/// Which poses an ATE is of.
+#[derive(Clone, Copy)]
+enum Which {
+    /// The filter's estimate (causal).
+    Estimate,
+    /// The particles' weighted mean (causal).
+    Mean,
+    /// The offline smoothed trajectory.
+    Smoothed,
 }
 
 /// RMS distance between the DGPS and the estimates of `pairs` (estimate in

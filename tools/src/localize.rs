@@ -7,7 +7,10 @@
 //! 2. [`replay`]: the mission replayed causally; per rotation the particle
 //!    filter ([`echofield_frontend::localization`]) moves by the forward
 //!    dead reckoning and weighs the rotation's scan on the field (eq. 5).
-//! 3. [`report`] and [`outputs`]: the verdict, convergence, accuracy,
+//! 3. [`smooth`]: offline, the filter's fixes and the dead reckoning
+//!    between rotations in one pose graph over the mission, solved by the
+//!    backend: the smoothed trajectory beside the causal one.
+//! 4. [`report`] and [`outputs`]: the verdict, convergence, accuracy,
 //!    particles and time per rotation; TUM, CSV, PNG, MCAP.
 //!
 //! ```no_run
@@ -26,6 +29,7 @@ pub mod outputs;
 pub mod replay;
 pub mod report;
 pub mod run_folder;
+pub mod smooth;
 
 pub use map::{PriorMap, build_prior_map};
 pub use replay::{Localized, localize_mission};
@@ -86,8 +90,17 @@ pub fn localize(
 ) -> Result<Localized> {
     let mut filter = MonteCarloLocalizer::new(config, map.field.clone())
         .map_err(|e| anyhow::anyhow!("[localize] {e}"))?;
-    localize_mission(mission, &map.config, &mut filter)
-        .with_context(|| format!("localising {}", mission.name))
+    let mut localized = localize_mission(mission, &map.config, &mut filter)
+        .with_context(|| format!("localising {}", mission.name))?;
+    let rotations = smooth::smoothing_rotations(&localized.rotations, config);
+    match smooth::smooth_trajectory(&rotations) {
+        Ok(poses) => localized.smoothed = Some(poses),
+        Err(e) => tracing::warn!(
+            "{}: no smoothed trajectory (the filtered one stands): {e:#}",
+            mission.name
+        ),
+    }
+    Ok(localized)
 }
 
 #[cfg(test)]

@@ -26,8 +26,10 @@ its config.toml how the scans and images were built (the localised mission's
 scans are built the same way), its trajectory_tum.txt the optimised node
 poses. The map's mission must still be where the run read it.
 
-OUTPUT gets trajectory_tum.txt (the estimate per rotation, map frame),
-localization.csv (per rotation: state, spread, particles, fit, coverage),
+OUTPUT gets trajectory_tum.txt (the estimate per rotation, map frame, as
+the filter gave it online), trajectory_smoothed_tum.txt (offline: the
+filter's fixes and the dead reckoning between rotations smoothed over the
+whole mission), localization.csv (per rotation: state, spread, particles, fit, coverage),
 localization.png, localization.mcap (the particle cloud for Foxglove) and
 report.json: the verdict (localised or not_localised), time to converge,
 recoveries after kidnappings, ATE against ground truth when the mission has
@@ -122,6 +124,14 @@ fn print_summary(report: &LocalizeReport, map_s: f64, output: &Path) {
                 .ate_rmse_dead_reckoning_m
                 .map_or("-".to_string(), |a| format!("{a:.3} m"))
         );
+        if let Some(smoothed) = report.ate_rmse_smoothed_m {
+            println!(
+                "smoothed offline: ATE RMSE {smoothed:.3} m (fitted {})",
+                report
+                    .ate_rmse_smoothed_aligned_m
+                    .map_or("-".to_string(), |a| format!("{a:.3} m"))
+            );
+        }
     }
     println!(
         "particles p50 {:.0} (max {:.0}); filter {:.1} ms per rotation p50 ({:.1} p95), with scan building {:.1} ms p50; {} recoveries; outputs in {}",

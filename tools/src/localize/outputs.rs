@@ -4,6 +4,7 @@
 //! |---|---|
 //! | `config.toml` | the effective `[localize]` section |
 //! | `trajectory_tum.txt` | the estimate per rotation (`[localize] estimate`), map frame, TUM |
+//! | `trajectory_smoothed_tum.txt` | offline: the filter's fixes and the dead reckoning between rotations smoothed over the whole mission ([`super::smooth`]), map frame, TUM; absent when the smoothing failed |
 //! | `dead_reckoning_tum.txt` | the forward dead reckoning at the same stamps (the mission's own frame), TUM |
 //! | `ground_truth_tum.txt` | ground truth at the same stamps moved into the map frame (by the map run's fit); only with ground truth and a map run that had it |
 //! | `localization.csv` | per rotation: stamp, state, estimate, spread, particles, fit, coverage, distance to the map, error |
@@ -31,6 +32,7 @@ use std::path::Path;
 pub const FOLDER_FILES: &[&str] = &[
     "config.toml",
     "trajectory_tum.txt",
+    "trajectory_smoothed_tum.txt",
     "dead_reckoning_tum.txt",
     "ground_truth_tum.txt",
     "localization.csv",
@@ -66,6 +68,17 @@ pub fn write_files(
     write_atomic(&dir.join("trajectory_tum.txt"), |w| {
         Ok(write_tum(&estimate, w)?)
     })?;
+    if let Some(smoothed) = &localized.smoothed {
+        let smoothed: Vec<TrajectoryPose> = (localized.rotations.iter().zip(smoothed))
+            .map(|(r, pose)| TrajectoryPose {
+                stamp_s: r.stamp_s,
+                pose: *pose,
+            })
+            .collect();
+        write_atomic(&dir.join("trajectory_smoothed_tum.txt"), |w| {
+            Ok(write_tum(&smoothed, w)?)
+        })?;
+    }
     write_atomic(&dir.join("dead_reckoning_tum.txt"), |w| {
         Ok(write_tum(&dead_reckoning, w)?)
     })?;

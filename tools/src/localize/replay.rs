@@ -25,6 +25,7 @@ use echofield_frontend::replay::{MissionRecord, ReadyRotations, mission_records}
 use echofield_frontend::rotation::Rotation;
 use echofield_frontend::sensors::{GroundTruthPose, Mission};
 use echofield_graph::Se2;
+use nalgebra::Matrix3;
 use std::time::Instant;
 
 /// Particles kept per rotation for the MCAP's cloud (every n-th).
@@ -39,6 +40,10 @@ pub struct LocalizedRotation {
     pub stamp_s: f64,
     /// Forward dead reckoning at `stamp_s` (the mission's own frame).
     pub dead_reckoning: Se2,
+    /// The dead reckoning's `previous_from_current` since the previous
+    /// rotation of [`Localized::rotations`] and its covariance in `(x, y, θ)` (m, rad), as
+    /// the filter took it; `None` at the first.
+    pub motion: Option<(Se2, Matrix3<f64>)>,
     pub step: LocalizationStep,
     /// Wall time of the filter step, s.
     pub filter_s: f64,
@@ -52,6 +57,9 @@ pub struct LocalizedRotation {
 /// The mission after localisation.
 pub struct Localized {
     pub rotations: Vec<LocalizedRotation>,
+    /// The offline smoothed pose of every rotation (map frame,
+    /// [`super::smooth`]); `None` when it was not computed or failed.
+    pub smoothed: Option<Vec<Se2>>,
     pub ground_truth: Vec<GroundTruthPose>,
     pub mission_name: String,
     pub mounting: echofield_frontend::sensors::SensorMounting,
@@ -98,6 +106,7 @@ pub fn localize_mission(
     }
     Ok(Localized {
         rotations: replay.rotations,
+        smoothed: None,
         ground_truth: mission.ground_truth.clone(),
         mission_name: mission.name.clone(),
         mounting: mission.mounting.clone(),
@@ -184,6 +193,7 @@ impl Replay<'_> {
             rotation_index: rotation.index,
             stamp_s: node.stamp_s,
             dead_reckoning: node.dead_reckoning,
+            motion,
             step,
             filter_s,
             build_s,

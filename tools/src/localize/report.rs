@@ -9,7 +9,8 @@
 //! rotations from the first convergence on (the time to converge is
 //! reported apart). Dead reckoning over the same rotations is fitted onto
 //! the ground truth (its best case: its own frame is unrelated to the
-//! map's).
+//! map's). The offline smoothed trajectory ([`super::smooth`]) is
+//! measured over the same rotations, both ways.
 
 use super::map::PriorMap;
 use super::replay::Localized;
@@ -57,6 +58,11 @@ pub struct LocalizeReport {
     pub ate_rmse_aligned_m: Option<f64>,
     /// Forward dead reckoning over the same rotations, fitted, m.
     pub ate_rmse_dead_reckoning_m: Option<f64>,
+    /// The offline smoothed trajectory ([`super::smooth`]) over the same
+    /// rotations: through the map run's fit, and fitted, m (`None`
+    /// without ground truth or without a smoothed trajectory).
+    pub ate_rmse_smoothed_m: Option<f64>,
+    pub ate_rmse_smoothed_aligned_m: Option<f64>,
     /// Largest position error after convergence, m.
     pub max_error_m: Option<f64>,
     /// Rotations more than [`FAR_FROM_MAP_M`] from any map node (true
@@ -208,6 +214,8 @@ pub fn build_report(
         ate_rmse_m: rmse(&accuracy.errors),
         ate_rmse_aligned_m: fitted_rmse(&accuracy.estimate, &accuracy.truth),
         ate_rmse_dead_reckoning_m: fitted_rmse(&accuracy.dead_reckoning, &accuracy.truth),
+        ate_rmse_smoothed_m: rmse(&accuracy.smoothed_errors),
+        ate_rmse_smoothed_aligned_m: fitted_rmse(&accuracy.smoothed, &accuracy.truth),
         max_error_m: accuracy.errors.iter().copied().reduce(f64::max),
         rotations_far_from_map: accuracy.far_from_map,
         ate_rmse_far_from_map_m: rmse(&accuracy.far_errors),
@@ -318,6 +326,10 @@ fn rotation_period_s(localized: &Localized) -> f64 {
 struct Accuracy {
     /// Position errors through the map run's fit, m.
     errors: Vec<f64>,
+    /// The same for the smoothed trajectory, and its positions (map frame)
+    /// at the rotations with ground truth; empty without one.
+    smoothed_errors: Vec<f64>,
+    smoothed: Vec<Vector2<f64>>,
     /// Estimates (map frame), dead reckoning (mission frame) and ground
     /// truth (its own frame) at the rotations with ground truth.
     estimate: Vec<Vector2<f64>>,
@@ -343,6 +355,8 @@ impl Accuracy {
                 .iter()
                 .filter_map(|r| r.error_m)
                 .collect(),
+            smoothed_errors: Vec::new(),
+            smoothed: Vec::new(),
             estimate: Vec::new(),
             dead_reckoning: Vec::new(),
             truth: Vec::new(),
@@ -362,6 +376,13 @@ impl Accuracy {
                 a.far_errors.extend(per_rotation[k].error_m);
             }
             if let Some(t) = t {
+                if let Some(s) = localized.smoothed.as_ref().and_then(|s| s.get(k)) {
+                    a.smoothed.push(s.translation());
+                    if let Some(m) = map.truth_from_map {
+                        let (x, y) = m.transform_xy(s.x(), s.y());
+                        a.smoothed_errors.push((t.x() - x).hypot(t.y() - y));
+                    }
+                }
                 a.estimate.push(r.step.estimate.translation());
                 a.dead_reckoning.push(r.dead_reckoning.translation());
                 a.truth.push(t.translation());
