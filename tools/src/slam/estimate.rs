@@ -280,8 +280,8 @@ mod tests {
             pose = pose.compose(&step);
         }
         let loops = [
-            (7, 3, Se2::new(0.0, -1.0, -std::f64::consts::FRAC_PI_2)),
-            (9, 2, { Se2::new(1.0, 1.0, std::f64::consts::PI) }),
+            (7, 3, Se2::new(1.0, 0.0, std::f64::consts::FRAC_PI_2)),
+            (9, 2, Se2::new(1.0, 1.0, std::f64::consts::PI)),
         ]
         .map(|(id, from, z)| {
             let edge = make_edge(EdgeKind::Loop, from, 0, z, &cov, None).unwrap();
