@@ -116,7 +116,11 @@ impl Estimate {
 
     /// Makes the accepted loops exactly `accepted` (id, from, to,
     /// `from_from_to`, covariance, metadata); returns whether anything
-    /// changed.
+    /// changed. The loop closer passes edges without metadata and attaches
+    /// it once, before the final solve ([`Self::attach_loop_metadata`]):
+    /// the loops change at nearly every node of a long mission, and making
+    /// and dropping every loop's metadata each time grew with the square of
+    /// the mission.
     pub fn set_loops(&mut self, accepted: Vec<(usize, Edge, Matrix3<f64>)>) -> bool {
         let new_ids: Vec<usize> = accepted.iter().map(|(id, _, _)| *id).collect();
         let old_ids: Vec<usize> = self.loops.keys().copied().collect();
@@ -138,6 +142,14 @@ impl Estimate {
         true
     }
 
+    /// Sets every loop edge's metadata to `metadata(id)` (the provenance
+    /// of loop `id`'s match), for the graphs that leave the estimate.
+    pub fn attach_loop_metadata(&mut self, metadata: impl Fn(usize) -> Option<serde_json::Value>) {
+        for (&id, edge) in &mut self.loops {
+            edge.metadata = metadata(id);
+        }
+    }
+
     /// Ids of the accepted loops.
     pub fn loop_ids(&self) -> impl Iterator<Item = usize> + '_ {
         self.loops.keys().copied()
@@ -145,6 +157,12 @@ impl Estimate {
 
     /// The graph at the current estimate, node 0 fixed.
     pub fn graph(&self) -> Result<PoseGraph, SlamError> {
+        self.build_graph(true)
+    }
+
+    /// [`Self::graph`], with the edges' metadata when `with_metadata`
+    /// (no solve reads it: the incremental solves go without copying it).
+    fn build_graph(&self, with_metadata: bool) -> Result<PoseGraph, SlamError> {
         let mut graph = PoseGraph::new();
         for (i, (pose, stamp_s)) in self.poses.iter().zip(&self.stamps_s).enumerate() {
             graph.add_node(Node {
@@ -154,7 +172,17 @@ impl Estimate {
             })?;
         }
         for edge in self.chain.iter().chain(self.loops.values()) {
-            graph.add_edge(edge.clone())?;
+            graph.add_edge(if with_metadata {
+                edge.clone()
+            } else {
+                Edge::new(
+                    edge.kind,
+                    edge.from,
+                    edge.to,
+                    edge.measurement,
+                    edge.information,
+                )
+            })?;
         }
         if !self.poses.is_empty() {
             graph.fix(0)?;
@@ -164,7 +192,7 @@ impl Estimate {
 
     /// An incremental solve from the current estimate.
     pub fn optimise_incremental(&mut self) -> Result<SolveSummary, SlamError> {
-        let mut graph = self.graph()?;
+        let mut graph = self.build_graph(false)?;
         let summary = self.solver.optimize(&mut graph)?;
         self.poses = graph.poses();
         self.incremental_solves += 1;
@@ -227,4 +255,79 @@ pub fn make_edge(
         information: info,
         metadata,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    /// Four nodes on a square's sides with noisy odometry (sequential
+    /// edges with metadata) and two loops back to node 0.
+    fn square() -> (Estimate, Vec<(usize, Edge, Matrix3<f64>)>) {
+        let mut estimate = Estimate::new(&BackendConfig::default()).unwrap();
+        let cov = Matrix3::from_diagonal(&nalgebra::Vector3::new(0.01, 0.01, 0.001));
+        let step = Se2::new(1.05, 0.02, std::f64::consts::FRAC_PI_2 + 0.03);
+        let mut pose = Se2::identity();
+        for k in 0..4 {
+            estimate.add_node(k as f64, pose);
+            if k > 0 {
+                let metadata = Some(json!({ "points": k }));
+                estimate
+                    .add_chain_edge(EdgeKind::Sequential, k - 1, k, step, &cov, metadata)
+                    .unwrap();
+            }
+            pose = pose.compose(&step);
+        }
+        let loops = [
+            (7, 3, Se2::new(1.0, 0.0, std::f64::consts::FRAC_PI_2)),
+            (9, 2, Se2::new(1.0, 1.0, std::f64::consts::PI)),
+        ]
+        .map(|(id, from, z)| {
+            let edge = make_edge(EdgeKind::Loop, from, 0, z, &cov, None).unwrap();
+            (id, edge, cov)
+        });
+        (estimate, loops.to_vec())
+    }
+
+    #[test]
+    fn loop_metadata_is_attached_once_and_no_solve_reads_metadata() {
+        let (mut estimate, loops) = square();
+        assert!(estimate.set_loops(loops.clone()));
+        assert!(!estimate.set_loops(loops));
+        // Set without metadata; attached on demand, per loop id.
+        let loop_edges = |graph: &PoseGraph| -> Vec<Option<serde_json::Value>> {
+            graph
+                .edges()
+                .filter(|e| e.kind == EdgeKind::Loop)
+                .map(|e| e.metadata.clone())
+                .collect()
+        };
+        assert_eq!(loop_edges(&estimate.graph().unwrap()), [None, None]);
+        estimate.attach_loop_metadata(|id| Some(json!({ "score": id })));
+        let full = estimate.graph().unwrap();
+        assert_eq!(
+            loop_edges(&full),
+            [Some(json!({ "score": 7 })), Some(json!({ "score": 9 }))]
+        );
+        assert!(full.edges().all(|e| e.metadata.is_some()));
+        // The solves' graph: the same edges, no metadata.
+        let bare = estimate.build_graph(false).unwrap();
+        assert!(bare.edges().all(|e| e.metadata.is_none()));
+        let strip = |e: &Edge| Edge::new(e.kind, e.from, e.to, e.measurement, e.information);
+        assert!(full.edges().map(strip).eq(bare.edges().cloned()));
+        // Solved with and without metadata: the same poses, bit for bit.
+        let config = BackendConfig::default().incremental_solver();
+        let solve = |mut graph: PoseGraph| {
+            Solver::new(config.clone())
+                .unwrap()
+                .optimize(&mut graph)
+                .unwrap();
+            graph.poses()
+        };
+        let (with, without) = (solve(full), solve(bare));
+        assert_eq!(with, without);
+        assert!(estimate.optimise_incremental().is_ok());
+        assert_eq!(estimate.poses(), &without[..]);
+    }
 }

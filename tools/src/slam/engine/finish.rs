@@ -112,6 +112,7 @@ fn final_solve(
     closer: &mut LoopCloser,
 ) -> Result<(PoseGraph, RobustSolveSummary), SlamError> {
     let kernel = config.backend.solver.robust.kernel(EdgeKind::Loop);
+    closer.attach_metadata(estimate);
     let (mut graph, summary) = estimate.optimise_robust(&config.backend)?;
     let switched: HashSet<(u64, u64)> = summary
         .switched_off
@@ -135,6 +136,7 @@ fn final_solve(
     }
     if !outliers.is_empty() {
         closer.reject(&outliers, RejectReason::RobustKernel, estimate);
+        closer.attach_metadata(estimate);
         graph = estimate.graph()?;
     }
     Ok((graph, summary))

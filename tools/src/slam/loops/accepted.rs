@@ -34,7 +34,8 @@ impl LoopCloser<'_> {
 
     /// The loop edges of the accepted set, with their covariances: the
     /// clique's loops as matched, the densified ones inflated by their
-    /// design effect (`loops::config::DENSIFY_CORRELATION`).
+    /// design effect (`loops::config::DENSIFY_CORRELATION`). Without
+    /// metadata: [`Self::attach_metadata`] gives it to the final ones.
     pub(super) fn accepted_edges(&self) -> Vec<(usize, echofield_graph::Edge, Matrix3<f64>)> {
         let primary: Vec<&LoopMeasurement> = self
             .accepted
@@ -56,12 +57,16 @@ impl LoopCloser<'_> {
             .filter_map(|(m, inflation)| {
                 let id = m.id;
                 let covariance = m.covariance * inflation;
-                let metadata = loop_metadata(&self.records[id]);
-                let edge =
-                    make_edge(EdgeKind::Loop, m.from, m.to, m.z, &covariance, metadata).ok()?;
+                let edge = make_edge(EdgeKind::Loop, m.from, m.to, m.z, &covariance, None).ok()?;
                 Some((id, edge, covariance))
             })
             .collect()
+    }
+
+    /// Gives the estimate's loop edges their metadata ([`loop_metadata`]
+    /// of their records), before a graph leaves the estimate.
+    pub fn attach_metadata(&self, estimate: &mut Estimate) {
+        estimate.attach_loop_metadata(|id| loop_metadata(&self.records[id]));
     }
 
     /// Takes accepted loops out again (e.g. outliers of the final solve),
