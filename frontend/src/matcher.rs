@@ -35,6 +35,7 @@ pub mod config;
 pub mod covariance;
 pub mod gate;
 pub mod outcome;
+pub mod rim;
 pub mod search;
 pub mod symmetric;
 pub mod window;
@@ -264,6 +265,18 @@ fn match_with(
         });
     };
     let coarse = best.pose(prior, &disc, cell_m);
+    // Step 2: away from the rim of the image's reach (see `rim`).
+    let refined = image.reach().and_then(|reach| {
+        rim::refine_inside_reach(&points, image, reach, &coarse, &best, &disc, config.min_points)
+    });
+    let (coarse, mut fit_points) = match &refined {
+        Some(r) => (r.pose, r.points.as_slice()),
+        None => (coarse, points.as_slice()),
+    };
+    let fit_all = std::env::var("RIM_FIT_ALL").is_ok_and(|v| v == "1");
+    if fit_all {
+        fit_points = points.as_slice();
+    }
     let steps = Vector3::new(cell_m, cell_m, cell_m / rho_m);
     let bound = window.as_vector().sup(&steps);
     let lattice_radius = match covariance_model {
@@ -271,7 +284,7 @@ fn match_with(
         CovarianceModel::Inner => 1,
     };
     let fit = covariance::fit_surface(
-        &points,
+        fit_points,
         image.grid(),
         &coarse,
         steps.z,
@@ -297,7 +310,7 @@ fn match_with(
         })
         .count();
     let searched_peak = pose;
-    let pose = pose_fit(&points, image, &pose, &steps, config.covariance_scale);
+    let pose = pose_fit(fit_points, image, &pose, &steps, config.covariance_scale);
     Ok(MatchOutcome::Match(Box::new(MatchResult {
         image_from_scan: pose,
         searched_peak,
