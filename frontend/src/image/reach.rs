@@ -41,6 +41,9 @@ pub struct Reach {
     /// bearings `[b·BIN_RAD, (b+1)·BIN_RAD)` counter-clockwise from x);
     /// 0 where no beam reached.
     rim_m: Vec<f32>,
+    /// The smallest of `rim_m`: every point nearer to `centre` than this
+    /// is inside the rim whatever its bearing.
+    nearest_rim_m: f32,
 }
 
 impl Reach {
@@ -76,7 +79,12 @@ impl Reach {
             return None;
         }
         fill_gaps(&mut rim_m, (max_wedge_rad / BIN_RAD).ceil() as usize);
-        Some(Self { centre, rim_m })
+        let nearest_rim_m = rim_m.iter().copied().fold(f32::INFINITY, f32::min);
+        Some(Self {
+            centre,
+            rim_m,
+            nearest_rim_m,
+        })
     }
 
     /// How far inside the rim `q` (image frame, metres) lies, measured
@@ -92,6 +100,17 @@ impl Reach {
         let lo = t.floor().rem_euclid(bins as f64) as usize % bins;
         let hi = (lo + 1) % bins;
         f64::from(self.rim_m[lo].min(self.rim_m[hi])) - d.norm()
+    }
+
+    /// `self.margin(q) >= need_m`, the same answer for every `q`, without
+    /// the bearing's bin when `q` lies nearer to the centre than the
+    /// nearest stretch of the rim by at least `need_m` (most points of a
+    /// full turn: the matcher asks this for every point of every pose it
+    /// refines).
+    pub fn covers(&self, q: &Point2<f64>, need_m: f64) -> bool {
+        let d = (q - self.centre).norm();
+        // margin(q) = rim of q's bins − d ≥ nearest_rim_m − d.
+        f64::from(self.nearest_rim_m) - d >= need_m || self.margin(q) >= need_m
     }
 
     /// The mean origin of the beams, image frame.
@@ -164,6 +183,34 @@ mod tests {
             let at = |r: f64| Point2::new(r * a.cos(), r * a.sin());
             assert!((reach.margin(&at(40.0)) - 10.0).abs() < 1e-3);
             assert!((reach.margin(&at(52.0)) + 2.0).abs() < 1e-3);
+        }
+    }
+
+    #[test]
+    fn covers_is_the_margin_compared_with_the_need() {
+        // A sector scan (a rim at 0 on the unswept side) and a full turn
+        // from a moved origin (the nearest rim short of the range).
+        let sector: (Vec<_>, Vec<_>) = (0..=90)
+            .map(|k| {
+                let a = f64::from(k - 45).to_radians();
+                (beam(a, 500), Se2::new(0.0, 0.0, a))
+            })
+            .unzip();
+        let moved = turn(360, (3.0, 0.0));
+        for (beams, frames) in [sector, moved] {
+            let reach = Reach::of_beams(&beams, &frames, None, 0.1).unwrap();
+            for k in 0..2000 {
+                let a = f64::from(k) * 0.0137;
+                let r = f64::from(k % 120) * 0.5;
+                let q = Point2::new(r * a.cos(), r * a.sin());
+                for need in [-1.0, 0.0, 0.5, 4.0] {
+                    assert_eq!(
+                        reach.covers(&q, need),
+                        reach.margin(&q) >= need,
+                        "{q} {need}"
+                    );
+                }
+            }
         }
     }
 

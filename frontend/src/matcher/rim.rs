@@ -99,7 +99,7 @@ pub fn refine_inside_reach(
     let refinement = Refinement::new(&steps, climb);
     let inside = points
         .iter()
-        .filter(|p| reach.margin(&coarse.transform_point(p)) >= refinement.margin_m(p))
+        .filter(|p| reach.covers(&coarse.transform_point(p), refinement.margin_m(p)))
         .count();
     if inside == points.len() || inside < min_points {
         return None;
@@ -126,7 +126,7 @@ fn mean_inside(
     let (mut sum, mut n) = (0.0, 0usize);
     for p in points {
         let q = pose.transform_point(p);
-        if reach.margin(&q) >= 0.0 {
+        if reach.covers(&q, 0.0) {
             sum += image.value_at(q.x, q.y);
             n += 1;
         }
@@ -209,7 +209,7 @@ fn normalised_climb(
     let fits = Refinement::new(steps, [0, 0, 0]);
     let inside: Vec<Point2<f64>> = points
         .iter()
-        .filter(|p| reach.margin(&pose.transform_point(p)) >= fits.margin_m(p))
+        .filter(|p| reach.covers(&pose.transform_point(p), fits.margin_m(p)))
         .copied()
         .collect();
     (inside.len() >= min_points).then_some(Refined {
