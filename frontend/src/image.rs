@@ -35,6 +35,7 @@ pub mod normalise;
 pub mod polar;
 pub mod pyramid;
 pub mod raster;
+pub mod reach;
 pub mod residency;
 pub mod stored;
 pub mod synthetic;
@@ -42,6 +43,7 @@ pub mod synthetic;
 pub use grid::{CellValue, Grid, QuantisedGrid};
 pub use polar::PolarSamples;
 pub use pyramid::Pyramid;
+pub use reach::Reach;
 pub use residency::ImageResidency;
 pub use stored::{GridExtent, StoredImage};
 
@@ -366,6 +368,8 @@ pub struct AcousticImage {
     /// (converting cells in the search's inner loops was slower:
     /// EXPERIMENTS.md § Speed notes).
     fit_grid: Option<QuantisedGrid>,
+    /// Where the beams reached (`None` for images made from a grid).
+    reach: Option<Reach>,
     /// The largest value of the grid (0 for an empty image).
     max_value: f32,
 }
@@ -423,6 +427,12 @@ impl AcousticImage {
         }
         let mut image = Self::from_grid(grid, config.pyramid_levels);
         image.fit_grid = fit_grid.map(|fit| fit.quantised());
+        image.reach = Reach::of_beams(
+            beams,
+            reference_from_beams,
+            config.max_range_m,
+            config.max_wedge_rad,
+        );
         image.polar = Some(PolarSamples::new(
             beams,
             reference_from_beams,
@@ -463,6 +473,7 @@ impl AcousticImage {
             pyramid,
             polar: None,
             fit_grid: None,
+            reach: None,
             max_value,
         }
     }
@@ -471,6 +482,13 @@ impl AcousticImage {
     /// ([`Self::pose_fit_grid`]), for images made from grids.
     pub fn with_pose_fit_grid(mut self, grid: Grid) -> Self {
         self.fit_grid = Some(grid.quantised());
+        self
+    }
+
+    /// This image with `reach` as the reach of its beams ([`Self::reach`]),
+    /// for images made from grids whose beams are known.
+    pub fn with_reach(mut self, reach: Reach) -> Self {
+        self.reach = Some(reach);
         self
     }
 
@@ -535,6 +553,13 @@ impl AcousticImage {
             + self.fit_grid.as_ref().map_or(0, Grid::heap_bytes)
             + self.pyramid.heap_bytes()
             + self.polar.as_ref().map_or(0, PolarSamples::heap_bytes)
+            + self.reach.as_ref().map_or(0, Reach::heap_bytes)
+    }
+
+    /// Where the image's beams reached ([`reach`]); `None` for images made
+    /// from a grid, whose reach is unknown.
+    pub fn reach(&self) -> Option<&Reach> {
+        self.reach.as_ref()
     }
 
     /// The sample model behind the raster, when the image was built from beams.

@@ -11,7 +11,14 @@
 //!    cell, the step of the covariance fit too), exact for
 //!    the score on the raster, with the max-pooled image pyramid as bounds;
 //!    [`match_scan_local`] climbs from the prior to the nearest lattice
-//!    maximum instead, for priors already close to the answer;
+//!    maximum instead, for priors already close to the answer; then
+//!    [`rim`] refines that lattice pose away from the rim of the image's
+//!    reach, where the sum of eq. (5) pulls a match along a wall that runs
+//!    out of the image towards a shorter displacement (a climb of a few
+//!    lattice steps on the mean over the points inside the rim; the fits
+//!    of steps 2 and 3 then use the points that stay inside it; off with
+//!    [`MatcherConfig::refine_inside_reach`], and for images without a
+//!    known reach);
 //! 2. [`covariance`]: a quadratic fit of the raster score around the best
 //!    lattice pose and a Laplace approximation give the covariance, and the
 //!    fitted quadratic's peak (a Newton step of at most one lattice step)
@@ -35,6 +42,7 @@ pub mod config;
 pub mod covariance;
 pub mod gate;
 pub mod outcome;
+pub mod rim;
 pub mod search;
 pub mod symmetric;
 pub mod window;
@@ -225,7 +233,28 @@ fn match_with(
         });
     };
     let coarse = best.pose(prior, &lattice.disc, lattice.cell_m);
-    let mut result = refine(&points, image, &coarse, window, &lattice, config, options);
+    // Step 2: away from the rim of the image's reach (see `rim`).
+    let reach = image.reach().filter(|_| config.refine_inside_reach);
+    let refined = reach.and_then(|reach| {
+        rim::refine_inside_reach(
+            &points,
+            image,
+            reach,
+            &coarse,
+            &best,
+            &lattice.disc,
+            config.min_points,
+        )
+    });
+    let (coarse, fit_points) = match &refined {
+        Some(r) => (r.pose, r.points.as_slice()),
+        None => (coarse, points.as_slice()),
+    };
+    let start = Start {
+        pose: coarse,
+        fit_points,
+    };
+    let mut result = refine(&points, image, &start, window, &lattice, config, options);
     result.stats.search_nodes = stats.nodes;
     Ok(MatchOutcome::Match(Box::new(result)))
 }
@@ -314,25 +343,34 @@ impl Lattice {
     }
 }
 
+/// Where the fits of a match start: the lattice pose (the search's, or
+/// the rim refinement's) and the points the covariance and pose fits use
+/// (all of them, or those the rim refinement kept).
+struct Start<'a> {
+    pose: Se2,
+    fit_points: &'a [Point2<f64>],
+}
+
 /// Steps 2 and 3 of the module doc from the coarse lattice pose: the
 /// covariance fit and its sub-cell peak, the quality at that peak, then
 /// the pose fit. `stats.search_nodes` is left 0 for the caller.
 fn refine(
     points: &[Point2<f64>],
     image: &AcousticImage,
-    coarse: &Se2,
+    start: &Start,
     window: &SearchWindow,
     lattice: &Lattice,
     config: &MatcherConfig,
     options: MatchOptions,
 ) -> MatchResult {
+    let (coarse, fit_points) = (&start.pose, start.fit_points);
     let steps = lattice.steps();
     let lattice_radius = match options.covariance {
         CovarianceModel::Surface => 2,
         CovarianceModel::Inner => 1,
     };
     let fit = covariance::fit_surface(
-        points,
+        fit_points,
         image.grid(),
         coarse,
         steps.z,
@@ -351,7 +389,7 @@ fn refine(
     };
     MatchResult {
         image_from_scan: pose_fit(
-            points,
+            fit_points,
             image,
             &searched_peak,
             &steps,

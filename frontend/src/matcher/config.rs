@@ -28,6 +28,19 @@ pub struct MatcherConfig {
     /// library callers may set it): 1, the Laplace approximation itself; the loop and sequential covariances are floored by the gates' `min_sigma` instead.
     #[serde(skip)]
     pub covariance_scale: f64,
+    /// Refine each match away from the rim of the image's reach
+    /// ([`rim`](crate::matcher::rim)): from the search's lattice pose, a
+    /// climb of at most a few lattice steps on the mean of `I` over the
+    /// scan points the pose puts inside the rim, and the covariance and
+    /// pose fits on the points that stay inside it. Images without a known
+    /// reach (made from a grid) are matched without it.
+    ///
+    /// Not a config key (`#[serde(skip)]`: config files keep the default,
+    /// false, the match on the sum over every point; library callers may
+    /// turn it on). Off by default until the localisation tests pass with
+    /// it (EXPERIMENTS.md § Long missions, the mean inside the rim).
+    #[serde(skip)]
+    pub refine_inside_reach: bool,
 }
 
 impl Default for MatcherConfig {
@@ -37,6 +50,7 @@ impl Default for MatcherConfig {
             max_points: 500,
             angle_step_rad: None,
             covariance_scale: 1.0,
+            refine_inside_reach: false,
         }
     }
 }
