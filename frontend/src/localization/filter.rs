@@ -47,6 +47,15 @@ const MIN_SCAN_POINTS: usize = 10;
 /// beyond, the filter no longer claims to know where it is (searching).
 const COASTING_SPREAD_FACTOR: f64 = 3.0;
 
+/// Consecutive rotations on which a searching filter must find a
+/// concentrated cloud whose scan fits the map before it claims to be
+/// localised. One scan after a global start can fit a wrong place about as
+/// well as a marginal fit of the right one (a quay like another quay); the
+/// next rotation, moved by the dead reckoning, rarely fits the same wrong
+/// place again. A filter started at a known pose
+/// ([`MonteCarloLocalizer::start_at`]) needs one.
+const CONFIRM_ROTATIONS: usize = 2;
+
 /// What the filter believes about itself after a rotation.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -54,7 +63,8 @@ pub enum LocalizationState {
     /// No single pose explains the scans yet (global search, or the cloud
     /// converged where the scans do not fit): not localised.
     Searching,
-    /// The cloud is concentrated and the scan fits the map there.
+    /// The cloud is concentrated and the scan fits the map there (from
+    /// searching: on `CONFIRM_ROTATIONS` rotations in a row).
     Localised,
     /// Was localised; now the sonar sees too little of the map to check the
     /// fit, or the cloud has spread beyond `converged_spread_m` (up to
@@ -111,6 +121,9 @@ pub struct MonteCarloLocalizer {
     state: LocalizationState,
     /// Consecutive rotations whose scan did not fit a concentrated cloud.
     poor_fits: usize,
+    /// Consecutive rotations, while searching, whose scan fitted a
+    /// concentrated cloud ([`CONFIRM_ROTATIONS`]).
+    confirmed_fits: usize,
 }
 
 impl MonteCarloLocalizer {
@@ -124,6 +137,7 @@ impl MonteCarloLocalizer {
             rng: ChaCha8Rng::seed_from_u64(config.seed),
             state: LocalizationState::Searching,
             poor_fits: 0,
+            confirmed_fits: 0,
         })
     }
 
@@ -141,6 +155,9 @@ impl MonteCarloLocalizer {
     /// deviations `sigma` (x m, y m, heading rad): `min_particles`
     /// particles drawn around it.
     pub fn start_at(&mut self, pose: Se2, sigma: Vector3<f64>) {
+        // A known start is its own confirmation: the first rotation that
+        // fits localises.
+        self.confirmed_fits = CONFIRM_ROTATIONS - 1;
         let n = self.config.min_particles;
         self.particles = (0..n)
             .map(|_| {
@@ -334,6 +351,7 @@ impl MonteCarloLocalizer {
         let sees_map = scored && coverage >= c.min_coverage;
         let fits = fit >= c.min_fit;
         if converged && sees_map && !fits {
+            self.confirmed_fits = 0;
             self.poor_fits += 1;
             if self.poor_fits >= c.lost_after_rotations {
                 self.poor_fits = 0;
@@ -349,10 +367,21 @@ impl MonteCarloLocalizer {
         self.poor_fits = 0;
         let coasting = b.spread_m <= COASTING_SPREAD_FACTOR * c.converged_spread_m;
         self.state = match (converged, sees_map) {
-            (true, true) => Localised,
+            (true, true) if was_localised => Localised,
+            (true, true) => {
+                self.confirmed_fits += 1;
+                if self.confirmed_fits >= CONFIRM_ROTATIONS {
+                    Localised
+                } else {
+                    Searching
+                }
+            }
             _ if was_localised && coasting => Coasting,
             _ => Searching,
         };
+        if self.state != Searching || !(converged && sees_map) {
+            self.confirmed_fits = 0;
+        }
         false
     }
 
@@ -435,6 +464,39 @@ mod tests {
         let error = (step.estimate.translation() - truth.translation()).norm();
         assert!(error < 0.3, "{error} m: {step:?}");
         assert!(step.particles < 5000, "KLD kept {}", step.particles);
+    }
+
+    #[test]
+    fn a_searching_filter_localises_on_consecutive_fits_only() {
+        use LocalizationState::*;
+        let (field, _) = map_and_scan(&Se2::identity());
+        let mut filter = MonteCarloLocalizer::new(&config(), field).unwrap();
+        let concentrated = Belief {
+            mean: Se2::identity(),
+            spread_m: 0.2,
+            heading_spread_rad: 0.01,
+        };
+        let (good, poor) = (config().min_fit + 0.05, config().min_fit - 0.01);
+        // A good fit, a poor one, a good one: a wrong place that fits now
+        // and then (seed 3 of the marina on a map of seed 1) never localises.
+        for fit in [good, poor, good] {
+            assert!(!filter.judge(&concentrated, true, fit, 1.0));
+            assert_eq!(filter.state, Searching, "fit {fit}");
+        }
+        // The second good fit in a row does.
+        assert!(!filter.judge(&concentrated, true, good, 1.0));
+        assert_eq!(filter.state, Localised);
+        // Localised, one poor fit keeps the state and a good one holds it.
+        assert!(!filter.judge(&concentrated, true, poor, 1.0));
+        assert_eq!(filter.state, Localised);
+        assert!(!filter.judge(&concentrated, true, good, 1.0));
+        assert_eq!(filter.state, Localised);
+        // A known start needs one fit.
+        let (field, _) = map_and_scan(&Se2::identity());
+        let mut known = MonteCarloLocalizer::new(&config(), field).unwrap();
+        known.start_at(Se2::identity(), Vector3::new(0.1, 0.1, 0.01));
+        assert!(!known.judge(&concentrated, true, good, 1.0));
+        assert_eq!(known.state, Localised);
     }
 
     #[test]

@@ -44,7 +44,9 @@ pub struct LocalizeReport {
     /// Share of the rotations from the first convergence on that are
     /// localised or coasting.
     pub localised_share: f64,
-    /// Times the filter judged itself lost (kidnapped) and re-seeded.
+    /// Times the filter, once converged, judged itself lost (kidnapped)
+    /// and re-seeded. A loss during the global search, before the first
+    /// convergence, is the search starting over and is not counted.
     pub recoveries: Vec<Recovery>,
     /// Fit of the scans at the estimates (mean field value of the points
     /// inside the map's coverage): mean and largest over the rotations
@@ -86,7 +88,7 @@ pub struct LocalizeReport {
 pub const FAR_FROM_MAP_M: f64 = 20.0;
 
 /// A kidnapping detected and how long the filter took to localise again.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Recovery {
     /// Rotation (index in `per_rotation`) judged lost.
     pub lost_rotation: usize,
@@ -295,11 +297,19 @@ fn fit_mean_and_max(per_rotation: &[RotationRecord], min_coverage: f64) -> (f64,
     (mean, fits.iter().copied().fold(0.0, f64::max))
 }
 
-/// Every rotation judged lost, with the first localised one after it.
+/// Every rotation judged lost after the first localised one, with the
+/// first localised one after it.
 fn recoveries(per_rotation: &[RotationRecord]) -> Vec<Recovery> {
+    let Some(first) = per_rotation
+        .iter()
+        .position(|r| r.state == LocalizationState::Localised)
+    else {
+        return Vec::new();
+    };
     per_rotation
         .iter()
         .enumerate()
+        .skip(first)
         .filter(|(_, r)| r.state == LocalizationState::Lost)
         .map(|(i, _)| Recovery {
             lost_rotation: i,
@@ -389,5 +399,64 @@ impl Accuracy {
             }
         }
         a
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use LocalizationState::*;
+
+    fn records(states: &[LocalizationState]) -> Vec<RotationRecord> {
+        states
+            .iter()
+            .enumerate()
+            .map(|(k, &state)| RotationRecord {
+                rotation_index: k,
+                stamp_s: k as f64,
+                state,
+                x_m: 0.0,
+                y_m: 0.0,
+                theta_rad: 0.0,
+                spread_m: 0.1,
+                heading_spread_rad: 0.01,
+                particles: 1000,
+                fit: 0.9,
+                coverage: 1.0,
+                reseeded: state == Lost,
+                distance_to_map_m: 0.0,
+                error_m: None,
+                mean_error_m: None,
+                filter_ms: 1.0,
+                build_ms: 1.0,
+            })
+            .collect()
+    }
+
+    #[test]
+    fn only_losses_after_the_first_convergence_are_recoveries() {
+        // The global search starts over at 1 (not a kidnapping); converged
+        // at 3; kidnapped and lost at 5, localised again at 7; lost at 8
+        // and never again.
+        let states = [
+            Searching, Lost, Searching, Localised, Localised, Lost, Searching, Localised, Lost,
+            Searching,
+        ];
+        let found = recoveries(&records(&states));
+        assert_eq!(
+            found,
+            vec![
+                Recovery {
+                    lost_rotation: 5,
+                    relocalised_rotation: Some(7)
+                },
+                Recovery {
+                    lost_rotation: 8,
+                    relocalised_rotation: None
+                },
+            ]
+        );
+        // Never converged: no recovery.
+        assert!(recoveries(&records(&[Searching, Lost, Searching])).is_empty());
     }
 }
