@@ -39,6 +39,7 @@ use super::replay::LocalizedRotation;
 use anyhow::{Context, Result};
 use echofield_backend::{Initialisation, RobustConfig, RobustKernel, SolverConfig, optimize};
 use echofield_frontend::localization::{LocalizationConfig, LocalizationState};
+use echofield_frontend::uncertainty::information;
 use echofield_graph::{Edge, EdgeKind, Node, PoseGraph, Se2};
 use nalgebra::{Matrix3, Vector3};
 
@@ -141,8 +142,12 @@ fn smooth_piece(piece: &[SmoothingRotation], first: usize) -> Result<Vec<Se2>> {
     }
     for (k, r) in piece.iter().enumerate() {
         if let Some(cov) = r.fix {
-            let information = inverse(&cov)
-                .with_context(|| format!("rotation {}: the fix's covariance is singular", id(k)))?;
+            let information = information(&cov).with_context(|| {
+                format!(
+                    "rotation {}: the fix's covariance is not positive definite",
+                    id(k)
+                )
+            })?;
             graph.add_edge(Edge::new(
                 EdgeKind::Prior,
                 id(k),
@@ -152,8 +157,11 @@ fn smooth_piece(piece: &[SmoothingRotation], first: usize) -> Result<Vec<Se2>> {
             ))?;
         }
         if let (Some((motion, cov)), true) = (&r.motion, k > 0) {
-            let information = inverse(cov).with_context(|| {
-                format!("rotation {}: the motion's covariance is singular", id(k))
+            let information = information(cov).with_context(|| {
+                format!(
+                    "rotation {}: the motion's covariance is not positive definite",
+                    id(k)
+                )
             })?;
             graph.add_edge(Edge::new(
                 EdgeKind::Odometry,
@@ -194,14 +202,6 @@ fn initial_poses(piece: &[SmoothingRotation]) -> Option<Vec<Se2>> {
         };
     }
     Some(poses)
-}
-
-/// The symmetrised inverse of a covariance, `None` when it is singular or
-/// not finite.
-fn inverse(cov: &Matrix3<f64>) -> Option<Matrix3<f64>> {
-    let inv = cov.try_inverse()?;
-    let inv = 0.5 * (inv + inv.transpose());
-    inv.iter().all(|v| v.is_finite()).then_some(inv)
 }
 
 #[cfg(test)]
