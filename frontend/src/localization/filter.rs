@@ -56,6 +56,16 @@ const COASTING_SPREAD_FACTOR: f64 = 3.0;
 /// ([`MonteCarloLocalizer::start_at`]) needs one.
 const CONFIRM_ROTATIONS: usize = 2;
 
+/// Share of the scan's points inside the map's coverage that a searching
+/// filter's fit needs to count towards [`CONFIRM_ROTATIONS`]. Tracking
+/// judges fits from `min_coverage` on, but a global fix has no prior
+/// behind it: a scan mostly outside the map is judged on its inside part
+/// alone, where a straight wall fits a wrong quay as well as the right
+/// one (a canyon mission on the marina's map fitted 0.87-0.93 with half
+/// its scan outside, 46 m from the map's nodes). A scan of a mapped place
+/// lies nearly all inside.
+const CONFIRM_COVERAGE: f64 = 0.75;
+
 /// What the filter believes about itself after a rotation.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -368,6 +378,7 @@ impl MonteCarloLocalizer {
         let coasting = b.spread_m <= COASTING_SPREAD_FACTOR * c.converged_spread_m;
         self.state = match (converged, sees_map) {
             (true, true) if was_localised => Localised,
+            (true, true) if coverage < CONFIRM_COVERAGE => Searching,
             (true, true) => {
                 self.confirmed_fits += 1;
                 if self.confirmed_fits >= CONFIRM_ROTATIONS {
@@ -379,7 +390,7 @@ impl MonteCarloLocalizer {
             _ if was_localised && coasting => Coasting,
             _ => Searching,
         };
-        if self.state != Searching || !(converged && sees_map) {
+        if self.state != Searching || !(converged && sees_map && coverage >= CONFIRM_COVERAGE) {
             self.confirmed_fits = 0;
         }
         false
@@ -491,6 +502,19 @@ mod tests {
         assert_eq!(filter.state, Localised);
         assert!(!filter.judge(&concentrated, true, good, 1.0));
         assert_eq!(filter.state, Localised);
+        // Good fits of a scan half outside the map do not count, and one
+        // breaks a run of confirming fits (a wall fitting a wrong quay).
+        let (field, _) = map_and_scan(&Se2::identity());
+        let mut edge = MonteCarloLocalizer::new(&config(), field).unwrap();
+        for coverage in [0.5, 0.5, 1.0, 0.5, 1.0] {
+            assert!(!edge.judge(&concentrated, true, good, coverage));
+            assert_eq!(edge.state, Searching, "coverage {coverage}");
+        }
+        assert!(!edge.judge(&concentrated, true, good, 1.0));
+        assert_eq!(edge.state, Localised);
+        // Once localised, it tracks on such fits.
+        assert!(!edge.judge(&concentrated, true, good, 0.5));
+        assert_eq!(edge.state, Localised);
         // A known start needs one fit.
         let (field, _) = map_and_scan(&Se2::identity());
         let mut known = MonteCarloLocalizer::new(&config(), field).unwrap();

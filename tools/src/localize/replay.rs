@@ -178,11 +178,14 @@ impl Replay<'_> {
             .map(|from_s| nav.relative(from_s, node.stamp_s))
             .transpose()
             .with_context(|| format!("dead reckoning of rotation {}", rotation.index))?;
-        let points = if node.in_dvl_gap {
-            &[][..]
-        } else {
-            &node.scan.points[..]
-        };
+        // A rotation in a DVL gap is weighed too (unlike the SLAM
+        // frontend, which does not match it): its scan was compensated with
+        // the held velocity, so it is somewhat distorted, but a particle
+        // weight is a score, not a constraint kept in a graph, and the scan
+        // still places the cloud far better than the dead reckoning alone,
+        // which is all the filter has in the gap (EXPERIMENTS.md
+        // § Localisation through DVL gaps).
+        let points = &node.scan.points[..];
         let step = self
             .filter
             .step(motion.as_ref(), node.dead_reckoning.theta(), points);
