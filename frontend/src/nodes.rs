@@ -47,7 +47,9 @@ pub struct NodeData {
     /// The rotation overlaps a gap in the DVL data (longer than
     /// `dead_reckoning.max_dvl_gap_s`): the motion compensation inside it
     /// extrapolated a held velocity, so its scan and image are distorted
-    /// and it is not matched. Dead reckoning bridges it.
+    /// and the SLAM frontend does not match it: dead reckoning bridges it.
+    /// (The localiser still weighs its particles with the scan: a weight
+    /// lasts one step, a graph edge stays.)
     pub in_dvl_gap: bool,
 }
 
