@@ -84,28 +84,59 @@ pub fn build_node(
     segmentation: &SegmentationConfig,
     image: &ImageConfig,
 ) -> Result<NodeData, Skip> {
+    let place = NodePlacement {
+        navigation,
+        mounting,
+        segmentation,
+        image,
+    };
+    build_node_from(beams.to_vec(), rotation, &place)
+}
+
+/// What places a rotation's beams and makes its scan and image.
+#[derive(Clone, Copy)]
+pub struct NodePlacement<'a> {
+    /// The dead reckoning that places each beam (motion compensation).
+    pub navigation: &'a Navigation,
+    /// The sonar's mounting on the vehicle.
+    pub mounting: &'a SensorMounting,
+    /// How the scan's ranges are picked from the beams.
+    pub segmentation: &'a SegmentationConfig,
+    /// How the acoustic image is built.
+    pub image: &'a ImageConfig,
+}
+
+/// [`build_node`] taking the rotation's beams: the node keeps them (for
+/// its image's rebuilds) without a copy.
+pub fn build_node_from(
+    beams: Vec<SonarBeam>,
+    rotation: &Rotation,
+    place: &NodePlacement<'_>,
+) -> Result<NodeData, Skip> {
+    let NodePlacement {
+        navigation,
+        mounting,
+        segmentation,
+        image,
+    } = *place;
     let stage = || format!("rotation {}", rotation.index);
     let fatal = |e: FrontendError| Skip::Fatal(StageError::new(stage(), e));
     let skip_outside = |e: FrontendError| match e {
         FrontendError::OutsideNavigation { .. } => Skip::Outside(e.to_string()),
         other => fatal(other),
     };
-    let frames = reference_from_beams(beams, navigation, mounting, rotation.reference_stamp_s)
+    let frames = reference_from_beams(&beams, navigation, mounting, rotation.reference_stamp_s)
         .map_err(skip_outside)?;
     let dead_reckoning = navigation
         .pose_at(rotation.reference_stamp_s)
         .map_err(skip_outside)?;
-    let scan = match build_scan(beams, &frames, rotation.reference_stamp_s, segmentation) {
+    let scan = match build_scan(&beams, &frames, rotation.reference_stamp_s, segmentation) {
         Ok(scan) => scan,
         Err(FrontendError::TooFewRanges { .. }) => Scan::empty(rotation.reference_stamp_s),
         Err(e) => return Err(fatal(e)),
     };
-    let image = StoredImage::build(
-        beams.to_vec(),
-        scan.image_frames(&frames),
-        Arc::new(image.clone()),
-    )
-    .map_err(fatal)?;
+    let image = StoredImage::build(beams, scan.image_frames(&frames), Arc::new(image.clone()))
+        .map_err(fatal)?;
     let footprint_m = footprint(&scan);
     let in_dvl_gap = navigation
         .dvl_gaps()

@@ -8,6 +8,7 @@
 use echofield::eval::{Alignment, ate};
 use echofield::slam::{
     NoProgress, NodeEvent, SlamConfig, SlamEngine, run_mission, run_mission_online,
+    run_mission_taking_beams,
 };
 use echofield_datasets::sim::{Scenario, simulate_mission};
 use echofield_frontend::Mission;
@@ -246,6 +247,32 @@ fn finish_gives_the_result_of_run_mission() {
     let (_, pushed) = push_all(mission, &config);
     let batch = run_mission(mission, &config, &NoProgress).unwrap();
     same(&pushed, &batch);
+}
+
+/// `run_mission_taking_beams` (what `echofield run` uses, so that a long
+/// mission's beams are held once) gives `run_mission`'s result and leaves
+/// the mission without its beams, with the mission as read and with a
+/// `[mounting]` that makes the pipeline prepare a copy of it.
+#[test]
+fn taking_the_beams_gives_the_result_of_run_mission() {
+    let mounting = "[mounting]\nsonar_yaw_deg = 1.0\nsonar_x_m = 0.3\n";
+    for config in [
+        SlamConfig::default(),
+        SlamConfig::from_toml_str(mounting).unwrap(),
+    ] {
+        let borrowed = run_mission(marina(), &config, &NoProgress).unwrap();
+        let mut mission = marina().clone();
+        let taken = run_mission_taking_beams(&mut mission, &config, &NoProgress).unwrap();
+        assert!(mission.beams.is_empty());
+        assert_eq!(mission.dvl, marina().dvl);
+        assert_eq!(mission.ground_truth, marina().ground_truth);
+        assert!(borrowed.nodes.len() >= 15, "{} nodes", borrowed.nodes.len());
+        assert_eq!(taken.nodes, borrowed.nodes);
+        assert_eq!(taken.graph.poses(), borrowed.graph.poses());
+        assert_eq!(taken.loops, borrowed.loops);
+        assert_eq!(taken.sequential, borrowed.sequential);
+        assert_eq!(taken.report.ate_rmse_m, borrowed.report.ate_rmse_m);
+    }
 }
 
 /// Records out of order: going back in time within a stream is an error

@@ -1,7 +1,8 @@
 //! The SLAM pipeline: frontend and backend joined over a whole mission.
 //!
-//! [`run_mission`] is what `echofield run`, `echofield demo` and the
-//! end-to-end tests call; it replays the mission, record by record in
+//! [`run_mission`] is what `echofield demo` and the end-to-end tests call
+//! (`echofield run` and `bench-long` call [`run_mission_taking_beams`],
+//! the same run with the beams moved into the nodes, not copied); it replays the mission, record by record in
 //! time order, through the [`SlamEngine`] ([`engine`]), which is also
 //! what an online user pushes samples into ([`run_mission_online`],
 //! `echofield run M.mcap --online --output DIR`). Per completed rotation:
@@ -75,7 +76,7 @@ pub use config::{BackendConfig, EvaluationConfig, SequentialConfig, SlamConfig};
 pub use engine::{NodeEvent, SlamEngine};
 pub use error::SlamError;
 pub use node_record::NodeRecord;
-pub use pipeline::{replay, run_mission, run_mission_online};
+pub use pipeline::{replay, run_mission, run_mission_online, run_mission_taking_beams};
 pub use result::{
     IntensityReport, OnlineReport, RecallBin, RecallBudget, Report, RunInfo, SlamOutput,
     StageTimings,

@@ -3,7 +3,7 @@
 //! parent module and in [`super::model`]).
 
 use super::DeadReckoningConfig;
-use super::model::{self, PSI, ProcessNoise, R, U, V, X, Y, pose_block, symmetric6};
+use super::model::{self, PSI, ProcessNoise, R, U, V, X, Y, symmetric6};
 use super::navigation::NavigationStep;
 use super::smoother::Prediction;
 use crate::error::FrontendError;
@@ -365,8 +365,6 @@ impl Ekf {
         NavigationStep {
             stamp_s: self.stamp_s,
             world_from_vehicle: Se2::new(self.s[X], self.s[Y], self.s[PSI]),
-            covariance: pose_block(&self.p),
-            transition: pose_block(&transition),
             velocity_mps: Vector2::new(self.s[U], self.s[V]),
             yaw_rate_radps: self.s[R],
             state_covariance: self.p,

@@ -274,6 +274,7 @@ impl ForwardFilter {
             navigation = smoothed;
         }
         navigation.set_yaw_rate_noise(self.config.yaw_rate_noise_radps, self.yaw_rate_check);
+        navigation.shrink_to_fit();
         Ok(navigation)
     }
 }

@@ -15,13 +15,6 @@ pub struct NavigationStep {
     pub stamp_s: f64,
     /// `world_from_vehicle` after this step.
     pub world_from_vehicle: Se2,
-    /// Covariance of `(x, y, θ)` in m², m·rad, rad² (the pose block of
-    /// `state_covariance`).
-    pub covariance: Matrix3<f64>,
-    /// The pose block of `state_transition`. On its own it describes how
-    /// errors propagate only when velocity errors are zero (navigations
-    /// from known poses); [`Navigation::relative`] uses the full matrix.
-    pub transition: Matrix3<f64>,
     /// Velocity of the vehicle origin in the vehicle frame (m/s) and yaw
     /// rate (rad/s) estimated at this step; used to extrapolate.
     pub velocity_mps: Vector2<f64>,
@@ -35,6 +28,15 @@ pub struct NavigationStep {
     /// Smoothed: `e_{k-1} = T e_k + w` (the smoother gain `G_{k-1}`). In both
     /// `w` is independent of the error on the right.
     pub state_transition: Matrix6<f64>,
+}
+
+impl NavigationStep {
+    /// Covariance of `(x, y, θ)` in m², m·rad, rad²: the pose block of
+    /// `state_covariance` (not stored apart: a long mission's navigation
+    /// holds a few hundred thousand steps).
+    pub fn covariance(&self) -> Matrix3<f64> {
+        pose_block(&self.state_covariance)
+    }
 }
 
 /// An interval without valid DVL samples longer than the configured limit.
@@ -140,6 +142,15 @@ impl Navigation {
         self.steps.push(step);
     }
 
+    /// Gives back the room the history grew into (a finished navigation
+    /// is held for the rest of a run: on a long mission a few hundred
+    /// thousand steps of several hundred bytes each).
+    pub(crate) fn shrink_to_fit(&mut self) {
+        self.steps.shrink_to_fit();
+        self.stamps_s.shrink_to_fit();
+        self.vectors.shrink_to_fit();
+    }
+
     /// The steps, giving up the history.
     pub(crate) fn into_steps(self) -> Vec<NavigationStep> {
         self.steps
@@ -179,8 +190,6 @@ impl Navigation {
                 NavigationStep {
                     stamp_s,
                     world_from_vehicle: *pose,
-                    covariance: Matrix3::zeros(),
-                    transition: Matrix3::identity(),
                     velocity_mps,
                     yaw_rate_radps,
                     state_covariance: Matrix6::zeros(),
@@ -203,8 +212,6 @@ impl Navigation {
         let step = |stamp_s| NavigationStep {
             stamp_s,
             world_from_vehicle: Se2::identity(),
-            covariance: Matrix3::zeros(),
-            transition: Matrix3::identity(),
             velocity_mps: Vector2::zeros(),
             yaw_rate_radps: 0.0,
             state_covariance: Matrix6::zeros(),
@@ -289,9 +296,9 @@ impl Navigation {
     pub fn covariance_at(&self, stamp_s: f64) -> Result<Matrix3<f64>, FrontendError> {
         Ok(match self.locate(stamp_s)? {
             Location::Between(k, f) if f > 0.0 => {
-                self.steps[k].covariance * (1.0 - f) + self.steps[k + 1].covariance * f
+                self.steps[k].covariance() * (1.0 - f) + self.steps[k + 1].covariance() * f
             }
-            Location::Between(k, _) => self.steps[k].covariance,
+            Location::Between(k, _) => self.steps[k].covariance(),
             Location::Outside(k, dt) => self.extrapolate(k, dt).1,
         })
     }

@@ -22,7 +22,7 @@
 //! integrated over the whole rotation; the smoothed velocity uses the DVL
 //! samples on both sides.
 
-use super::model::{PSI, R, U, V, X, Y, pose_block, symmetric6};
+use super::model::{PSI, R, U, V, X, Y, symmetric6};
 use super::navigation::NavigationStep;
 use echofield_graph::Se2;
 use echofield_graph::se2::wrap_angle;
@@ -54,7 +54,6 @@ pub(crate) fn smooth(steps: &mut [NavigationStep], predictions: &[Prediction]) {
             // A degenerate prediction (no uncertainty at all): keep the
             // filtered step; its error is then not linked to the next one.
             steps[k + 1].state_transition = Matrix6::zeros();
-            steps[k + 1].transition = pose_block(&Matrix6::zeros());
             next_state = filtered;
             next_cov = p;
             continue;
@@ -66,7 +65,6 @@ pub(crate) fn smooth(steps: &mut [NavigationStep], predictions: &[Prediction]) {
         state[PSI] = wrap_angle(state[PSI]);
         let cov = symmetric6(&(p + g * (next_cov - pred.covariance) * g.transpose()));
         steps[k + 1].state_transition = g;
-        steps[k + 1].transition = pose_block(&g);
         set_state(&mut steps[k], &state, &cov);
         next_state = state;
         next_cov = cov;
@@ -90,7 +88,6 @@ fn set_state(step: &mut NavigationStep, state: &Vector6<f64>, cov: &Matrix6<f64>
     step.velocity_mps = Vector2::new(state[U], state[V]);
     step.yaw_rate_radps = state[R];
     step.state_covariance = *cov;
-    step.covariance = pose_block(cov);
 }
 
 /// Inverse of a covariance: Cholesky, or the pseudo-inverse when it is

@@ -3,7 +3,7 @@
 
 use anyhow::{Context, Result, bail};
 use echofield::slam::outputs::write_outputs;
-use echofield::slam::{NoProgress, SlamConfig, load_mission, run_mission};
+use echofield::slam::{NoProgress, SlamConfig, load_mission, run_mission_taking_beams};
 use echofield_datasets::mcap::write_mission;
 use echofield_datasets::sim::{Scenario, SimConfig, simulate_mission};
 use std::path::{Path, PathBuf};
@@ -210,8 +210,8 @@ fn run_child(
 ) -> Result<()> {
     let mut config = SlamConfig::from_optional_toml_file(config)?;
     config.loops.cover_spacing_m = cover_spacing_m;
-    let mission = load_mission(mission_path)?;
-    let result = run_mission(&mission, &config, &NoProgress)
+    let mut mission = load_mission(mission_path)?;
+    let result = run_mission_taking_beams(&mut mission, &config, &NoProgress)
         .with_context(|| format!("SLAM on {} failed", mission_path.display()))?;
     write_outputs(output, &result, &mission)?;
     if let Some(kb) = peak_resident_kb() {

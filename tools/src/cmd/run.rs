@@ -11,7 +11,7 @@ use echofield::slam::outputs::{FOLDER_FILES, write_output_files};
 use echofield::slam::result::Report;
 use echofield::slam::{
     ProgressSink, RunInfo, SlamConfig, load_mission_choosing, load_mission_with_keyframes,
-    run_mission,
+    run_mission_taking_beams,
 };
 use echofield_datasets::mcap::{ChannelUse, TopicChoice};
 use echofield_frontend::sensors::Mission;
@@ -168,7 +168,7 @@ pub fn run(args: Args) -> Result<()> {
     // Before any work: a folder that cannot be written fails now.
     let folder = OutputFolder::prepare(&args.output, FOLDER_FILES)?;
     let start = Instant::now();
-    let mission = load(&args, &config)?;
+    let mut mission = load(&args, &config)?;
     let reading_s = start.elapsed().as_secs_f64();
     let progress = BarProgress::new();
     let failed = || format!("SLAM on {} failed", args.mission.display());
@@ -177,7 +177,7 @@ pub fn run(args: Args) -> Result<()> {
         (run.output, Some(run.emitted))
     } else {
         (
-            run_mission(&mission, &config, &progress).with_context(failed)?,
+            run_mission_taking_beams(&mut mission, &config, &progress).with_context(failed)?,
             None,
         )
     };

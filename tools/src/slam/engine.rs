@@ -65,7 +65,7 @@ use super::config::SlamConfig;
 use super::result::{IntensityReport, SkippedRotation, StageTimings};
 use echofield_frontend::dead_reckoning::Navigation;
 use echofield_frontend::intensity::IntensityKind;
-use echofield_frontend::nodes::{NodeData, Skip, build_node};
+use echofield_frontend::nodes::{NodeData, NodePlacement, Skip, build_node_from};
 use echofield_frontend::replay::ReadyRotations;
 use echofield_frontend::rotation::Rotation;
 use echofield_frontend::sensors::{Attitude, DvlVelocity, SensorMounting, SonarBeam};
@@ -282,41 +282,41 @@ impl<'c> SlamEngine<'c> {
     }
 
     /// The nodes of `rotations` (consecutive, the oldest pending ones), in
-    /// parallel when there are several; drops their beams.
+    /// parallel when there are several; their beams move into the nodes,
+    /// and the beams before them are dropped.
     fn build_nodes(&mut self, rotations: &[Rotation]) -> Vec<Result<NodeData, Skip>> {
-        self.beams.make_contiguous();
-        let beams = self.beams.as_slices().0;
-        let offset = self.beams_offset;
-        let build = |rotation: &Rotation| {
-            let first = rotation.beams.start - offset;
-            let beams = &beams[first..first + rotation.beams.len()];
-            match self.navigation.current() {
-                Some(navigation) => build_node(
-                    beams,
-                    rotation,
+        let owned: Vec<Vec<SonarBeam>> = rotations
+            .iter()
+            .map(|rotation| {
+                // Rotations are disjoint and in order (the stream cuts
+                // each where the last ended).
+                let skipped = rotation.beams.start.saturating_sub(self.beams_offset);
+                self.beams.drain(..skipped);
+                self.beams_offset = rotation.beams.end;
+                self.beams.drain(..rotation.beams.len()).collect()
+            })
+            .collect();
+        let build = |(rotation, beams): (&Rotation, Vec<SonarBeam>)| match self.navigation.current()
+        {
+            Some(navigation) => {
+                let place = NodePlacement {
                     navigation,
-                    &self.mounting,
-                    &self.config.segmentation,
-                    &self.config.image,
-                ),
-                None => Err(Skip::Outside(format!(
-                    "no navigation yet at t = {:.3} s (no time with both a valid DVL sample and a heading)",
-                    rotation.end_s
-                ))),
+                    mounting: &self.mounting,
+                    segmentation: &self.config.segmentation,
+                    image: &self.config.image,
+                };
+                build_node_from(beams, rotation, &place)
             }
+            None => Err(Skip::Outside(format!(
+                "no navigation yet at t = {:.3} s (no time with both a valid DVL sample and a heading)",
+                rotation.end_s
+            ))),
         };
-        let built: Vec<Result<NodeData, Skip>> = if rotations.len() > 1 {
-            rotations.par_iter().map(build).collect()
+        if rotations.len() > 1 {
+            rotations.par_iter().zip(owned).map(build).collect()
         } else {
-            rotations.iter().map(build).collect()
-        };
-        // The beams up to the last rotation's end are not needed any more.
-        if let Some(last) = rotations.last() {
-            let done = last.beams.end - self.beams_offset;
-            self.beams.drain(..done);
-            self.beams_offset = last.beams.end;
+            rotations.iter().zip(owned).map(build).collect()
         }
-        built
     }
 
     /// Adds the node built for `rotation` (which took `build_s`) to the

@@ -1,4 +1,5 @@
-//! [`run_mission`] and [`run_mission_online`]: a recorded mission prepared
+//! [`run_mission`], [`run_mission_taking_beams`] and
+//! [`run_mission_online`]: a recorded mission prepared
 //! (mounting, screening, intensity scale) and replayed, record by record in
 //! time order, through the [`SlamEngine`].
 
@@ -7,10 +8,11 @@ use super::engine::{NodeEvent, SlamEngine};
 use super::result::{IntensityReport, SlamOutput};
 use super::{ProgressSink, SlamError, check_sensors};
 use echofield_frontend::dead_reckoning;
+use echofield_frontend::dead_reckoning::Record;
 use echofield_frontend::intensity::{self, IntensityKind};
 use echofield_frontend::replay::{MissionRecord, mission_records};
 use echofield_frontend::screening;
-use echofield_frontend::sensors::Mission;
+use echofield_frontend::sensors::{Mission, SonarBeam};
 use echofield_frontend::warnings::Warnings;
 use std::borrow::Cow;
 use std::time::Instant;
@@ -48,6 +50,21 @@ pub fn run_mission_online(
     result
 }
 
+/// As [`run_mission`], but the beams are moved out of `mission` into the
+/// engine as they are replayed instead of copied: a long mission's beams
+/// are then held once (by its nodes) instead of twice. Afterwards
+/// `mission.beams` is empty; the rest of `mission` is as it was. The
+/// outputs are those of [`run_mission`]. Errors as [`run_mission`].
+pub fn run_mission_taking_beams(
+    mission: &mut Mission,
+    config: &SlamConfig,
+    progress: &dyn ProgressSink,
+) -> Result<SlamOutput, SlamError> {
+    let result = run_taking_beams(mission, config, progress);
+    progress.finish();
+    result
+}
+
 /// `on_event` given: online, else batch.
 fn run(
     mission: &Mission,
@@ -58,38 +75,88 @@ fn run(
     config.validate()?;
     let (mission, config, intensity, warnings) = prepare(mission, config)?;
     let (mission, config): (&Mission, &SlamConfig) = (&mission, &config);
-    let mut dead_reckoning_s = 0.0;
-    // Online runs have no dead-reckoning stage before the engine.
-    let total = if on_event.is_some() { 2 } else { 3 };
-    let mut engine = match on_event {
-        Some(_) => SlamEngine::new(config, &mission.name, mission.mounting.clone())?,
-        None => {
-            progress.stage(1, total, "dead reckoning");
-            let t = Instant::now();
-            let navigation = dead_reckoning::run(mission, &config.dead_reckoning)
-                .map_err(|e| SlamError::frontend("dead reckoning", e))?;
-            dead_reckoning_s = t.elapsed().as_secs_f64();
-            SlamEngine::with_navigation(
-                config,
-                &mission.name,
-                mission.mounting.clone(),
-                navigation,
-            )?
-        }
-    };
+    let online = on_event.is_some();
+    let (mut engine, dead_reckoning_s) = start(mission, config, progress, online)?;
     engine.set_input_report(intensity, warnings);
-    progress.stage(total - 1, total, "node by node");
     let mut ignore = |_: NodeEvent| {};
     let on_event: &mut dyn FnMut(NodeEvent) = match on_event {
         Some(f) => f,
         None => &mut ignore,
     };
     replay(mission, &mut engine, progress, on_event)?;
+    finish(engine, mission, progress, online, dead_reckoning_s)
+}
+
+/// Batch [`run`] with the beams taken out of `mission` (see
+/// [`run_mission_taking_beams`]).
+fn run_taking_beams(
+    mission: &mut Mission,
+    config: &SlamConfig,
+    progress: &dyn ProgressSink,
+) -> Result<SlamOutput, SlamError> {
+    config.validate()?;
+    let (prepared, config, intensity, warnings) = prepare(mission, config)?;
+    let config: &SlamConfig = &config;
+    let mut prepared = match prepared {
+        Cow::Owned(prepared) => Some(prepared),
+        Cow::Borrowed(_) => None,
+    };
+    // A prepared copy holds its own beams: the original's go now.
+    if prepared.is_some() {
+        mission.beams = Vec::new();
+    }
+    let mission = prepared.as_mut().unwrap_or(mission);
+    let (mut engine, dead_reckoning_s) = start(mission, config, progress, false)?;
+    engine.set_input_report(intensity, warnings);
+    let beams = std::mem::take(&mut mission.beams);
+    replay_beams(mission, beams, &mut engine, progress)?;
+    finish(engine, mission, progress, false, dead_reckoning_s)
+}
+
+/// The engine for `mission`: causal when `online`, else on the navigation
+/// computed over the whole mission first (and the seconds that took).
+fn start<'c>(
+    mission: &Mission,
+    config: &'c SlamConfig,
+    progress: &dyn ProgressSink,
+    online: bool,
+) -> Result<(SlamEngine<'c>, f64), SlamError> {
+    let total = stages(online);
+    let mut dead_reckoning_s = 0.0;
+    let engine = if online {
+        SlamEngine::new(config, &mission.name, mission.mounting.clone())?
+    } else {
+        progress.stage(1, total, "dead reckoning");
+        let t = Instant::now();
+        let navigation = dead_reckoning::run(mission, &config.dead_reckoning)
+            .map_err(|e| SlamError::frontend("dead reckoning", e))?;
+        dead_reckoning_s = t.elapsed().as_secs_f64();
+        SlamEngine::with_navigation(config, &mission.name, mission.mounting.clone(), navigation)?
+    };
+    progress.stage(total - 1, total, "node by node");
+    Ok((engine, dead_reckoning_s))
+}
+
+/// The final solve and the report's dead-reckoning time.
+fn finish(
+    engine: SlamEngine<'_>,
+    mission: &Mission,
+    progress: &dyn ProgressSink,
+    online: bool,
+    dead_reckoning_s: f64,
+) -> Result<SlamOutput, SlamError> {
+    let total = stages(online);
     progress.stage(total, total, "final optimisation");
     let mut output = engine.finish(&mission.ground_truth)?;
     output.report.timings.dead_reckoning_s += dead_reckoning_s;
     output.report.time_s += dead_reckoning_s;
     Ok(output)
+}
+
+/// Stages shown by the progress bar: online runs have no dead-reckoning
+/// stage before the engine.
+fn stages(online: bool) -> usize {
+    if online { 2 } else { 3 }
 }
 
 /// Pushes every record of `mission` into `engine` in time order (at equal
@@ -119,6 +186,43 @@ pub fn replay(
             progress.node_done(event.node_id + 1, event.loops_accepted);
             on_event(event);
         }
+    }
+    progress.beams(total, total);
+    Ok(())
+}
+
+/// [`replay`] of a batch run with the mission's beams given apart
+/// (taken out of it): the same records in the same order
+/// ([`mission_records`]: navigation records up to a beam's stamp before
+/// it), each beam moved into `engine` instead of copied.
+fn replay_beams(
+    mission: &Mission,
+    beams: Vec<SonarBeam>,
+    engine: &mut SlamEngine<'_>,
+    progress: &dyn ProgressSink,
+) -> Result<(), SlamError> {
+    let total = beams.len();
+    let mut navigation = dead_reckoning::merged_records(mission).peekable();
+    let push_navigation = |engine: &mut SlamEngine<'_>, record| match record {
+        Record::Dvl(s) => engine.push_dvl(s),
+        Record::Attitude(a) => engine.push_attitude(a),
+    };
+    let node_done = |events: Vec<NodeEvent>| {
+        for event in events {
+            progress.node_done(event.node_id + 1, event.loops_accepted);
+        }
+    };
+    for (i, beam) in beams.into_iter().enumerate() {
+        while let Some(record) = navigation.next_if(|r| r.stamp_s() <= beam.stamp_s) {
+            node_done(push_navigation(engine, record)?);
+        }
+        if i % 256 == 0 {
+            progress.beams(i, total);
+        }
+        node_done(engine.push_beam(beam)?);
+    }
+    for record in navigation {
+        node_done(push_navigation(engine, record)?);
     }
     progress.beams(total, total);
     Ok(())
