@@ -22,24 +22,28 @@ use crate::dead_reckoning::{self, Record};
 use crate::error::FrontendError;
 use crate::rotation::{Rotation, RotationConfig, RotationStream};
 use crate::sensors::{Attitude, DvlVelocity, Mission, SonarBeam};
+use std::borrow::Borrow;
 use std::collections::VecDeque;
 
-/// One record of a mission, as a vehicle would deliver it.
+/// One record of a mission, as a vehicle would deliver it. The beam is
+/// borrowed from the mission ([`mission_records`]) or, with
+/// [`records_with_beams`], whatever form the caller gave it in (e.g.
+/// moved out of the mission).
 #[derive(Clone, Copy, Debug)]
-pub enum MissionRecord<'m> {
+pub enum MissionRecord<'m, B = &'m SonarBeam> {
     Dvl(&'m DvlVelocity),
     Attitude(&'m Attitude),
     /// A sonar beam with its index in [`Mission::beams`].
-    Beam(usize, &'m SonarBeam),
+    Beam(usize, B),
 }
 
-impl MissionRecord<'_> {
+impl<B: Borrow<SonarBeam>> MissionRecord<'_, B> {
     /// The record's stamp, s.
     pub fn stamp_s(&self) -> f64 {
         match self {
             Self::Dvl(s) => s.stamp_s,
             Self::Attitude(a) => a.stamp_s,
-            Self::Beam(_, b) => b.stamp_s,
+            Self::Beam(_, b) => b.borrow().stamp_s,
         }
     }
 }
@@ -49,23 +53,32 @@ impl MissionRecord<'_> {
 /// waiting for a sample stamped with it). Each stream keeps its own order
 /// (out-of-order records are the consumer's to report).
 pub fn mission_records(mission: &Mission) -> impl Iterator<Item = MissionRecord<'_>> {
+    records_with_beams(mission, &mission.beams)
+}
+
+/// [`mission_records`] with the mission's beams given apart, in the
+/// mission's order (`beams[i]` is `Mission::beams[i]`, e.g. moved out of
+/// it before the replay): the same records in the same order, each beam
+/// as given. `mission.beams` itself is not read.
+pub fn records_with_beams<'m, B: Borrow<SonarBeam>>(
+    mission: &'m Mission,
+    beams: impl IntoIterator<Item = B>,
+) -> impl Iterator<Item = MissionRecord<'m, B>> {
     let mut navigation = dead_reckoning::merged_records(mission).peekable();
-    let mut beams = mission.beams.iter().enumerate().peekable();
+    let mut beams = beams.into_iter().enumerate().peekable();
     std::iter::from_fn(move || {
-        let Some(&(i, beam)) = beams.peek() else {
+        let Some((_, beam)) = beams.peek() else {
             return navigation.next().map(MissionRecord::from);
         };
-        match navigation.next_if(|r| r.stamp_s() <= beam.stamp_s) {
+        let beam_s = beam.borrow().stamp_s;
+        match navigation.next_if(|r| r.stamp_s() <= beam_s) {
             Some(record) => Some(record.into()),
-            None => {
-                beams.next();
-                Some(MissionRecord::Beam(i, beam))
-            }
+            None => beams.next().map(|(i, beam)| MissionRecord::Beam(i, beam)),
         }
     })
 }
 
-impl<'m> From<Record<'m>> for MissionRecord<'m> {
+impl<'m, B> From<Record<'m>> for MissionRecord<'m, B> {
     fn from(record: Record<'m>) -> Self {
         match record {
             Record::Dvl(s) => Self::Dvl(s),

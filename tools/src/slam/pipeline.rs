@@ -8,13 +8,12 @@ use super::engine::{NodeEvent, SlamEngine};
 use super::result::{IntensityReport, SlamOutput};
 use super::{ProgressSink, SlamError, check_sensors};
 use echofield_frontend::dead_reckoning;
-use echofield_frontend::dead_reckoning::Record;
 use echofield_frontend::intensity::{self, IntensityKind};
-use echofield_frontend::replay::{MissionRecord, mission_records};
+use echofield_frontend::replay::{MissionRecord, mission_records, records_with_beams};
 use echofield_frontend::screening;
 use echofield_frontend::sensors::{Mission, SonarBeam};
 use echofield_frontend::warnings::Warnings;
-use std::borrow::Cow;
+use std::borrow::{Borrow, Cow};
 use std::time::Instant;
 
 /// Runs the whole pipeline on `mission` (see [`crate::slam`]) in batch
@@ -169,7 +168,36 @@ pub fn replay(
     on_event: &mut dyn FnMut(NodeEvent),
 ) -> Result<(), SlamError> {
     let total = mission.beams.len();
-    for record in mission_records(mission) {
+    let records = mission_records(mission);
+    replay_records(records, total, engine, progress, on_event, SonarBeam::clone)
+}
+
+/// [`replay`] of a batch run with the mission's beams given apart
+/// (taken out of it, in its order): the same records in the same order
+/// ([`records_with_beams`]), each beam moved into `engine` instead of
+/// copied.
+fn replay_beams(
+    mission: &Mission,
+    beams: Vec<SonarBeam>,
+    engine: &mut SlamEngine<'_>,
+    progress: &dyn ProgressSink,
+) -> Result<(), SlamError> {
+    let total = beams.len();
+    let records = records_with_beams(mission, beams);
+    replay_records(records, total, engine, progress, &mut |_| {}, |b| b)
+}
+
+/// Feeds `records` (`total` beams among them) to `engine`, each beam as
+/// `into_beam` makes it, and reports the nodes they complete.
+fn replay_records<'m, B: Borrow<SonarBeam>>(
+    records: impl Iterator<Item = MissionRecord<'m, B>>,
+    total: usize,
+    engine: &mut SlamEngine<'_>,
+    progress: &dyn ProgressSink,
+    on_event: &mut dyn FnMut(NodeEvent),
+    into_beam: impl Fn(B) -> SonarBeam,
+) -> Result<(), SlamError> {
+    for record in records {
         let events = match record {
             MissionRecord::Dvl(s) => engine.push_dvl(s)?,
             MissionRecord::Attitude(a) => engine.push_attitude(a)?,
@@ -179,50 +207,13 @@ pub fn replay(
                 if i % 256 == 0 {
                     progress.beams(i, total);
                 }
-                engine.push_beam(beam.clone())?
+                engine.push_beam(into_beam(beam))?
             }
         };
         for event in events {
             progress.node_done(event.node_id + 1, event.loops_accepted);
             on_event(event);
         }
-    }
-    progress.beams(total, total);
-    Ok(())
-}
-
-/// [`replay`] of a batch run with the mission's beams given apart
-/// (taken out of it): the same records in the same order
-/// ([`mission_records`]: navigation records up to a beam's stamp before
-/// it), each beam moved into `engine` instead of copied.
-fn replay_beams(
-    mission: &Mission,
-    beams: Vec<SonarBeam>,
-    engine: &mut SlamEngine<'_>,
-    progress: &dyn ProgressSink,
-) -> Result<(), SlamError> {
-    let total = beams.len();
-    let mut navigation = dead_reckoning::merged_records(mission).peekable();
-    let push_navigation = |engine: &mut SlamEngine<'_>, record| match record {
-        Record::Dvl(s) => engine.push_dvl(s),
-        Record::Attitude(a) => engine.push_attitude(a),
-    };
-    let node_done = |events: Vec<NodeEvent>| {
-        for event in events {
-            progress.node_done(event.node_id + 1, event.loops_accepted);
-        }
-    };
-    for (i, beam) in beams.into_iter().enumerate() {
-        while let Some(record) = navigation.next_if(|r| r.stamp_s() <= beam.stamp_s) {
-            node_done(push_navigation(engine, record)?);
-        }
-        if i % 256 == 0 {
-            progress.beams(i, total);
-        }
-        node_done(engine.push_beam(beam)?);
-    }
-    for record in navigation {
-        node_done(push_navigation(engine, record)?);
     }
     progress.beams(total, total);
     Ok(())
