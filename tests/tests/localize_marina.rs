@@ -260,10 +260,10 @@ fn dvl_gaps(mission: &Mission, min_s: f64) -> Vec<(f64, f64)> {
 
 #[test]
 fn a_rotation_in_a_dvl_gap_is_still_weighed_by_its_scan() {
-    // Seed 6 loses its DVL for about 9 s some 3.5 min into the mission:
-    // the rotation over it has a scan compensated with the held velocity.
-    // Before the filter weighed such scans it coasted on the dead
-    // reckoning there (0.42 m off against 0.20-0.30 m around it).
+    // Seed 6 loses its DVL in its first 5 minutes: the rotations over the
+    // gap have scans compensated with the held velocity. Before the filter
+    // weighed such scans it coasted on the dead reckoning there
+    // (EXPERIMENTS.md § Localisation through DVL gaps).
     let mission = truncated(&marina(6), 300.0);
     let gaps = dvl_gaps(&mission, 5.0);
     assert!(!gaps.is_empty(), "seed 6's first 5 min lost no DVL");

@@ -22,8 +22,9 @@ use super::stored::StoredImage;
 /// Default budget: bytes of images held at most after each step (a step
 /// in progress may add the images its matches read). Sized so that a run
 /// of the longest benchmark mission (`echofield bench-long`, 1,397
-/// rotations), images, beams, navigation and solver together, stays
-/// within 1.5 GB of resident memory (EXPERIMENTS.md § Long missions).
+/// rotations), images, beams, navigation and solver together, meets issue
+/// 36's 1.5 GB target of resident memory (measured: EXPERIMENTS.md § Long
+/// missions).
 pub const DEFAULT_BUDGET_BYTES: usize = 704 << 20;
 
 /// The policy's state: when each image was last read.

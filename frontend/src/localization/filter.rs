@@ -61,9 +61,8 @@ const CONFIRM_ROTATIONS: usize = 2;
 /// judges fits from `min_coverage` on, but a global fix has no prior
 /// behind it: a scan mostly outside the map is judged on its inside part
 /// alone, where a straight wall fits a wrong quay as well as the right
-/// one (a canyon mission on the marina's map fitted 0.87-0.93 with half
-/// its scan outside, 46 m from the map's nodes). A scan of a mapped place
-/// lies nearly all inside.
+/// one. A scan of a mapped place lies nearly all inside (measured:
+/// EXPERIMENTS.md § Localisation through DVL gaps).
 const CONFIRM_COVERAGE: f64 = 0.75;
 
 /// What the filter believes about itself after a rotation.
