@@ -37,9 +37,11 @@ impl LoopCloser<'_> {
     /// loop yet: only the loops that left or joined are touched, so a
     /// mission whose clique changes at nearly every node does not remake
     /// every loop's edge each time (work that grew with nodes × loops).
-    /// Ends in the state [`Self::refresh_cover`] and
-    /// `estimate.set_loops(self.accepted_edges())` would leave, and returns
-    /// what that `set_loops` would.
+    /// Precondition: the cover and the estimate's loops are those of
+    /// `previous`, as [`Self::admit`] leaves them. Ends in the state
+    /// [`Self::refresh_cover`] and `estimate.set_loops(self.accepted_edges())`
+    /// would leave (the links of a node in another order, which no path
+    /// search depends on), and returns what that `set_loops` would.
     pub(super) fn apply_clique_change(
         &mut self,
         previous: &[usize],
