@@ -66,6 +66,19 @@ impl LoopCover {
         }
     }
 
+    /// Forgets one kept loop `(from, to)` (nothing when none is kept).
+    pub fn remove(&mut self, from: usize, to: usize) {
+        let Some(froms) = self.by_to.get_mut(&to) else {
+            return;
+        };
+        if let Some(i) = froms.iter().position(|&f| f == from) {
+            froms.swap_remove(i);
+        }
+        if froms.is_empty() {
+            self.by_to.remove(&to);
+        }
+    }
+
     /// Whether a kept loop covers `(j, k)`; `distance_m[i]` is `s(i)`
     /// (non-decreasing). Nodes past the end of `distance_m` cover and are
     /// covered by nothing.
@@ -149,5 +162,21 @@ mod tests {
         assert!(!cover.covers(40, 9, &s));
         cover.clear();
         assert!(!cover.covers(1, 9, &s));
+    }
+
+    #[test]
+    fn a_removed_loop_no_longer_covers_and_the_others_still_do() {
+        let s = track();
+        let mut cover = LoopCover::new(1.5);
+        cover.insert(1, 9);
+        cover.insert(3, 9);
+        cover.remove(1, 9);
+        // (0, 8) was covered by (1, 9) only; (3, 9) still covers (4, 10).
+        assert!(!cover.covers(0, 8, &s));
+        assert!(cover.covers(4, 10, &s));
+        cover.remove(3, 9);
+        cover.remove(3, 9);
+        assert!(!cover.covers(4, 10, &s));
+        assert!(!cover.covers(3, 9, &s));
     }
 }

@@ -142,6 +142,39 @@ impl Estimate {
         true
     }
 
+    /// Takes the loops `left` out and adds `joined` (id, edge, covariance):
+    /// the state [`Self::set_loops`] would leave with the accepted loops
+    /// minus `left` plus `joined`, without touching the loops that stay.
+    /// Returns whether anything changed (ids of `left` that are not loops
+    /// here are ignored; an id of `joined` already here is replaced).
+    pub fn update_loops(
+        &mut self,
+        left: &[usize],
+        joined: Vec<(usize, Edge, Matrix3<f64>)>,
+    ) -> bool {
+        let mut changed = false;
+        for id in left {
+            if let Some(edge) = self.loops.remove(id) {
+                self.links.remove(edge.from as usize, edge.to as usize);
+                changed = true;
+            }
+        }
+        for (id, edge, cov) in joined {
+            if let Some(old) = self.loops.remove(&id) {
+                self.links.remove(old.from as usize, old.to as usize);
+            }
+            self.links.add(
+                edge.from as usize,
+                edge.to as usize,
+                &edge.measurement,
+                &cov,
+            );
+            self.loops.insert(id, edge);
+            changed = true;
+        }
+        changed
+    }
+
     /// Sets every loop edge's metadata to `metadata(id)` (the provenance
     /// of loop `id`'s match), for the graphs that leave the estimate.
     pub fn attach_loop_metadata(&mut self, metadata: impl Fn(usize) -> Option<serde_json::Value>) {

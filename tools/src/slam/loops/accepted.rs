@@ -32,6 +32,38 @@ impl LoopCloser<'_> {
         }
     }
 
+    /// Brings the cover and the estimate's loop edges from the clique
+    /// `previous` (ids ascending) to the current one, with no densified
+    /// loop yet: only the loops that left or joined are touched, so a
+    /// mission whose clique changes at nearly every node does not remake
+    /// every loop's edge each time (work that grew with nodes × loops).
+    /// Precondition: the cover and the estimate's loops are those of
+    /// `previous`, as [`Self::admit`] leaves them. Ends in the state
+    /// [`Self::refresh_cover`] and `estimate.set_loops(self.accepted_edges())`
+    /// would leave (the links of a node in another order, which no path
+    /// search depends on), and returns what that `set_loops` would.
+    pub(super) fn apply_clique_change(
+        &mut self,
+        previous: &[usize],
+        estimate: &mut Estimate,
+    ) -> bool {
+        debug_assert!(self.dense.is_empty(), "densified loops need set_loops");
+        let (left, joined) = sorted_difference(previous, &self.accepted.ids);
+        for &id in &left {
+            if let Some(m) = self.consistency.measurement(id) {
+                self.cover.remove(m.from, m.to);
+            }
+        }
+        let mut edges = Vec::with_capacity(joined.len());
+        for &id in &joined {
+            if let Some(m) = self.consistency.measurement(id) {
+                self.cover.insert(m.from, m.to);
+                edges.extend(loop_edge(m, 1.0));
+            }
+        }
+        estimate.update_loops(&left, edges)
+    }
+
     /// The loop edges of the accepted set, with their covariances: the
     /// clique's loops as matched, the densified ones inflated by their
     /// design effect (`loops::config::DENSIFY_CORRELATION`). Without
@@ -54,12 +86,7 @@ impl LoopCloser<'_> {
             .into_iter()
             .map(|m| (m, 1.0))
             .chain(self.dense.iter().zip(inflations))
-            .filter_map(|(m, inflation)| {
-                let id = m.id;
-                let covariance = m.covariance * inflation;
-                let edge = make_edge(EdgeKind::Loop, m.from, m.to, m.z, &covariance, None).ok()?;
-                Some((id, edge, covariance))
-            })
+            .filter_map(|(m, inflation)| loop_edge(m, inflation))
             .collect()
     }
 
@@ -112,6 +139,46 @@ impl LoopCloser<'_> {
     }
 }
 
+/// The loop edge of `m` with its covariance times `inflation` (id, edge,
+/// covariance), without metadata; `None` when that covariance is not
+/// positive definite (the loop then stays out of the graph).
+fn loop_edge(
+    m: &LoopMeasurement,
+    inflation: f64,
+) -> Option<(usize, echofield_graph::Edge, Matrix3<f64>)> {
+    let covariance = m.covariance * inflation;
+    let edge = make_edge(EdgeKind::Loop, m.from, m.to, m.z, &covariance, None).ok()?;
+    Some((m.id, edge, covariance))
+}
+
+/// The ids of `old` not in `new` and of `new` not in `old` (both
+/// ascending), each ascending.
+fn sorted_difference(old: &[usize], new: &[usize]) -> (Vec<usize>, Vec<usize>) {
+    let (mut left, mut joined) = (Vec::new(), Vec::new());
+    let (mut old, mut new) = (old.iter().peekable(), new.iter().peekable());
+    loop {
+        match (old.peek(), new.peek()) {
+            (Some(a), Some(b)) if a == b => {
+                old.next();
+                new.next();
+            }
+            (Some(&&a), Some(&&b)) if a < b => {
+                left.push(a);
+                old.next();
+            }
+            (_, Some(&&b)) => {
+                joined.push(b);
+                new.next();
+            }
+            (Some(&&a), None) => {
+                left.push(a);
+                old.next();
+            }
+            (None, None) => return (left, joined),
+        }
+    }
+}
+
 /// What a loop edge carries besides its measurement (g2o drops it).
 pub fn loop_metadata(record: &LoopRecord) -> Option<serde_json::Value> {
     let quality = record.quality.as_ref()?;
@@ -125,11 +192,17 @@ pub fn loop_metadata(record: &LoopRecord) -> Option<serde_json::Value> {
 
 #[cfg(test)]
 mod tests {
+    use super::super::LoopCloser;
     use super::super::fixtures::{closer_on_a_line, measurement};
+    use super::sorted_difference;
+    use crate::slam::config::BackendConfig;
+    use crate::slam::estimate::Estimate;
     use echofield_frontend::loops::LoopConfig;
     use echofield_frontend::loops::config::CONSISTENCY_MAX_CHI2;
     use echofield_frontend::loops::consistency::Clique;
     use echofield_frontend::matcher::MatcherConfig;
+    use echofield_graph::{EdgeKind, Se2};
+    use nalgebra::Matrix3;
 
     #[test]
     fn a_loop_dropped_from_the_clique_no_longer_covers() {
@@ -153,5 +226,88 @@ mod tests {
         closer.accepted.ids.clear();
         closer.refresh_cover();
         assert!(!closer.cover.covers(4, 26, &s));
+    }
+
+    #[test]
+    fn sorted_difference_lists_the_ids_that_left_and_joined() {
+        assert_eq!(
+            sorted_difference(&[1, 3, 5, 9], &[2, 3, 9, 11, 12]),
+            (vec![1, 5], vec![2, 11, 12])
+        );
+        assert_eq!(sorted_difference(&[], &[4]), (vec![], vec![4]));
+        assert_eq!(sorted_difference(&[4, 6], &[]), (vec![4, 6], vec![]));
+        assert_eq!(sorted_difference(&[4, 6], &[4, 6]), (vec![], vec![]));
+    }
+
+    /// The 40 nodes of `closer_on_a_line` in an estimate, chained by 1 m
+    /// odometry edges.
+    fn line_estimate() -> Estimate {
+        let mut estimate = Estimate::new(&BackendConfig::default()).unwrap();
+        let cov = Matrix3::from_diagonal(&nalgebra::Vector3::new(0.01, 0.02, 1e-4));
+        for i in 0..40 {
+            estimate.add_node(i as f64, Se2::new(i as f64, 0.1 * i as f64, 0.0));
+            if i > 0 {
+                let step = Se2::new(1.0, 0.0, 0.0);
+                let kind = EdgeKind::Odometry;
+                estimate
+                    .add_chain_edge(kind, i - 1, i, step, &cov, None)
+                    .unwrap();
+            }
+        }
+        estimate
+    }
+
+    /// Everything the cover and the estimate's loops answer: covered pairs,
+    /// loop ids, the graph's edges, every node's path covariances.
+    fn state(closer: &LoopCloser, estimate: &Estimate) -> String {
+        let s = closer.chain.distances();
+        let covered: Vec<(usize, usize)> = (0..40)
+            .flat_map(|j| (j..40).map(move |k| (j, k)))
+            .filter(|&(j, k)| closer.cover.covers(j, k, s))
+            .collect();
+        let ids: Vec<usize> = estimate.loop_ids().collect();
+        let edges: Vec<_> = estimate.graph().unwrap().edges().cloned().collect();
+        let paths: Vec<_> = (0..40)
+            .map(|i| estimate.links().relative_from(i, estimate.poses()))
+            .collect();
+        format!("{covered:?}\n{ids:?}\n{edges:?}\n{paths:?}")
+    }
+
+    #[test]
+    fn a_clique_change_ends_where_remaking_every_loop_ends() {
+        let config = LoopConfig {
+            cover_spacing_m: 2.0,
+            ..LoopConfig::default()
+        };
+        let matcher = MatcherConfig::default();
+        let (mut by_change, mut remade) = (
+            closer_on_a_line(&config, &matcher),
+            closer_on_a_line(&config, &matcher),
+        );
+        let (mut estimate_a, mut estimate_b) = (line_estimate(), line_estimate());
+        for closer in [&mut by_change, &mut remade] {
+            let chain = closer.chain.clone();
+            for (id, from, to) in [(7, 3, 25), (9, 5, 30), (12, 1, 38), (15, 10, 22)] {
+                let mut m = measurement(id, from, to);
+                m.z = Se2::new((to - from) as f64, 0.0, 0.0);
+                m.covariance *= 0.01 * id as f64;
+                closer.consistency.add(m, &chain, CONSISTENCY_MAX_CHI2);
+            }
+        }
+        // Loops joining, leaving, coming back, and nothing changing.
+        let cliques: [&[usize]; 6] = [&[7], &[7, 9, 12], &[9, 15], &[7, 9, 15], &[7, 9, 15], &[]];
+        for ids in cliques {
+            let previous = std::mem::replace(&mut by_change.accepted.ids, ids.to_vec());
+            let changed_a = by_change.apply_clique_change(&previous, &mut estimate_a);
+            remade.accepted.ids = ids.to_vec();
+            remade.refresh_cover();
+            let changed_b = estimate_b.set_loops(remade.accepted_edges());
+            assert_eq!(changed_a, changed_b, "{ids:?}");
+            assert_eq!(
+                state(&by_change, &estimate_a),
+                state(&remade, &estimate_b),
+                "{ids:?}"
+            );
+        }
     }
 }

@@ -177,9 +177,13 @@ impl LoopCloser<'_> {
         }
         let clique = self.consistency.max_clique();
         self.inexact_cliques += usize::from(!clique.exact);
-        self.accepted = clique;
+        let previous = std::mem::replace(&mut self.accepted, clique);
         self.validation_time_s += start.elapsed().as_secs_f64();
-        self.refresh_cover();
-        estimate.set_loops(self.accepted_edges())
+        if !self.dense.is_empty() {
+            // Densified loops' covariances depend on every accepted loop.
+            self.refresh_cover();
+            return estimate.set_loops(self.accepted_edges());
+        }
+        self.apply_clique_change(&previous.ids, estimate)
     }
 }
