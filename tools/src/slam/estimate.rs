@@ -131,15 +131,16 @@ impl Estimate {
             self.links.remove(edge.from as usize, edge.to as usize);
         }
         for (id, edge, cov) in accepted {
-            self.links.add(
-                edge.from as usize,
-                edge.to as usize,
-                &edge.measurement,
-                &cov,
-            );
-            self.loops.insert(id, edge);
+            self.insert_loop(id, edge, &cov);
         }
         true
+    }
+
+    /// Adds loop `id` (its edge and its link for the path covariances).
+    fn insert_loop(&mut self, id: usize, edge: Edge, cov: &Matrix3<f64>) {
+        self.links
+            .add(edge.from as usize, edge.to as usize, &edge.measurement, cov);
+        self.loops.insert(id, edge);
     }
 
     /// Takes the loops `left` out and adds `joined` (id, edge, covariance):
@@ -163,13 +164,7 @@ impl Estimate {
             if let Some(old) = self.loops.remove(&id) {
                 self.links.remove(old.from as usize, old.to as usize);
             }
-            self.links.add(
-                edge.from as usize,
-                edge.to as usize,
-                &edge.measurement,
-                &cov,
-            );
-            self.loops.insert(id, edge);
+            self.insert_loop(id, edge, &cov);
             changed = true;
         }
         changed
