@@ -26,9 +26,9 @@ use std::sync::OnceLock;
 /// ATE bound after convergence, m: the 0.3 m. The seeds tested
 /// here (2 and 3) meet it with the estimate refined on the mean blend,
 /// and so does the offline smoothed trajectory; of the other seeds only
-/// seed 6's filtered estimate does not, by a few millimetres (a DVL gap:
-/// EXPERIMENTS.md § Localisation through DVL gaps), the map's own error
-/// (seed 1's run: 0.229 m) being the floor.
+/// seed 6's filtered estimate does not (a DVL gap: EXPERIMENTS.md
+/// § Localisation through DVL gaps), the map's own error (its run's ATE)
+/// being the floor.
 const MAX_ATE_M: f64 = 0.3;
 
 /// ATE bound after the recovery from a kidnapping, m: the bound all these

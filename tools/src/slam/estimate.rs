@@ -154,20 +154,24 @@ impl Estimate {
         joined: Vec<(usize, Edge, Matrix3<f64>)>,
     ) -> bool {
         let mut changed = false;
-        for id in left {
-            if let Some(edge) = self.loops.remove(id) {
-                self.links.remove(edge.from as usize, edge.to as usize);
-                changed = true;
-            }
+        for &id in left {
+            changed |= self.remove_loop(id);
         }
         for (id, edge, cov) in joined {
-            if let Some(old) = self.loops.remove(&id) {
-                self.links.remove(old.from as usize, old.to as usize);
-            }
+            self.remove_loop(id);
             self.insert_loop(id, edge, &cov);
             changed = true;
         }
         changed
+    }
+
+    /// Takes loop `id` out (its edge and its link); whether it was here.
+    fn remove_loop(&mut self, id: usize) -> bool {
+        let Some(edge) = self.loops.remove(&id) else {
+            return false;
+        };
+        self.links.remove(edge.from as usize, edge.to as usize);
+        true
     }
 
     /// Sets every loop edge's metadata to `metadata(id)` (the provenance
