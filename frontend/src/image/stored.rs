@@ -173,6 +173,29 @@ impl StoredImage {
         AcousticImage::build_grid(&source.beams, &source.frames, &source.config)
     }
 
+    /// A submap: one image built from this image's beams and those of
+    /// `others`, each other image's beam frames carried into this image's
+    /// frame by its `reference_from_other` (as [`AcousticImage::build`] on
+    /// the union; where beams of several rotations cover a cell, the cell
+    /// is their mean, as where the beams of one rotation overlap). Neither
+    /// image is read or built. `None` when this image or one of `others`
+    /// was made without its inputs ([`StoredImage::resident_only`]).
+    /// Errors: those of [`AcousticImage::build`].
+    pub fn composite(
+        &self,
+        others: &[(&StoredImage, Se2)],
+    ) -> Option<Result<AcousticImage, FrontendError>> {
+        let source = self.source.as_ref()?;
+        let mut beams = source.beams.clone();
+        let mut frames = source.frames.clone();
+        for (other, reference_from_other) in others {
+            let other = other.source.as_ref()?;
+            beams.extend(other.beams.iter().cloned());
+            frames.extend(other.frames.iter().map(|f| reference_from_other.compose(f)));
+        }
+        Some(AcousticImage::build(&beams, &frames, &source.config))
+    }
+
     /// Drops the resident image (readers holding it keep their copy until
     /// they finish). Returns whether an image was dropped: `false` when
     /// none was resident, and for images without their inputs, which stay.
@@ -297,6 +320,50 @@ mod tests {
         // A resident read builds nothing.
         stored.image().unwrap();
         assert_eq!((stored.reads(), stored.rebuilds()), (2, 1));
+    }
+
+    #[test]
+    fn a_submap_holds_the_echoes_of_the_older_rotation_where_it_placed_them() {
+        // The newer rotation heard nothing (a thresholded log that dropped
+        // every wall); the older one heard the scene, from a pose 1.5 m
+        // and 0.2 rad away in the newer one's frame.
+        let rotation = static_rotation(&SceneConfig::default(), 3);
+        let config = Arc::new(ImageConfig::default());
+        let mut silent = rotation.beams.clone();
+        for beam in &mut silent {
+            beam.intensities.iter_mut().for_each(|v| *v = 0);
+        }
+        let frames = rotation.reference_from_beams.clone();
+        let newer = StoredImage::build(silent, frames.clone(), Arc::clone(&config)).unwrap();
+        let older = StoredImage::build(rotation.beams.clone(), frames, config).unwrap();
+        assert!(newer.is_empty() && !older.is_empty());
+        let newer_from_older = Se2::new(1.5, -0.5, 0.2);
+        let submap = newer
+            .composite(&[(&older, newer_from_older)])
+            .unwrap()
+            .unwrap();
+        // The older image's brightest place, on a 0.25 m lattice.
+        let old = older.image().unwrap();
+        let lattice = (-120..=120).flat_map(|i| (-120..=120).map(move |j| (i, j)));
+        let (x, y) = lattice
+            .map(|(i, j)| (f64::from(i) * 0.25, f64::from(j) * 0.25))
+            .max_by(|a, b| old.value_at(a.0, a.1).total_cmp(&old.value_at(b.0, b.1)))
+            .unwrap();
+        let peak = old.value_at(x, y);
+        assert!(peak > 0.5, "{peak}");
+        // In the submap it is where the older pose puts it, not where it
+        // was in the older frame (the rotation moved it by > 1 m there).
+        let (u, v) = newer_from_older.transform_xy(x, y);
+        assert!(
+            submap.value_at(u, v) > 0.25 * peak,
+            "{}",
+            submap.value_at(u, v)
+        );
+        assert!(submap.value_at(x, y) < submap.value_at(u, v));
+        // Images made without their inputs give no submap.
+        let bare = StoredImage::resident_only(old.as_ref().clone());
+        assert!(bare.composite(&[(&older, newer_from_older)]).is_none());
+        assert!(newer.composite(&[(&bare, newer_from_older)]).is_none());
     }
 
     #[test]

@@ -195,7 +195,30 @@ pub struct SequentialConfig {
     /// ([`MatchGate`], `[sequential.gate]`, defaults
     /// [`MatchGate::sequential`]); the prior is the dead-reckoning motion.
     pub gate: MatchGate,
+    /// Earlier rotations whose images join `I_{k-1}` in the submap that
+    /// `S_k` is matched against (0: `I_{k-1}` alone). Not a key: derived
+    /// from the data, [`SUBMAP_ROTATIONS_SCAN_ONLY`] for binary
+    /// (thresholded) intensities, 0 otherwise (`sequential.rs`).
+    #[serde(skip)]
+    pub submap_rotations: usize,
 }
+
+/// The submap depth of scan-only data (`SequentialConfig::submap_rotations`):
+/// a thresholded log keeps a wall's echo in one rotation and drops it in
+/// the next, so `I_{k-1}` alone can lack walls that `S_k` holds and the
+/// match slides along the walls it has; the images of the three rotations
+/// before it (about a minute of travel at survey speed) bring them back.
+/// Chosen on simulated thresholded missions (EXPERIMENTS.md § The
+/// sequential match against a submap).
+pub const SUBMAP_ROTATIONS_SCAN_ONLY: usize = 3;
+
+/// Largest squared Mahalanobis distance between a submap match and the
+/// inverse of its reverse match, with both (floored) covariances: 11.34,
+/// the 99% quantile of χ² with 3 degrees of freedom. The reverse match
+/// reads `I_k` alone, which lacks the walls its rotation dropped, so a
+/// fixed tolerance would reject the matches the submap made right; its
+/// covariance says along which directions it cannot tell.
+pub const SUBMAP_REVERSE_MAX_CHI2: f64 = 11.34;
 
 /// Largest squared Mahalanobis distance between a sequential match and
 /// the dead-reckoning motion, with both covariances: 16.3, the 99.9%
@@ -210,6 +233,7 @@ impl Default for SequentialConfig {
             enabled: true,
             symmetric: true,
             gate: MatchGate::sequential(),
+            submap_rotations: 0,
         }
     }
 }

@@ -3,7 +3,7 @@
 //! (mounting, screening, intensity scale) and replayed, record by record in
 //! time order, through the [`SlamEngine`].
 
-use super::config::SlamConfig;
+use super::config::{SUBMAP_ROTATIONS_SCAN_ONLY, SlamConfig};
 use super::engine::{NodeEvent, SlamEngine};
 use super::result::{IntensityReport, SlamOutput};
 use super::{ProgressSink, SlamError, check_sensors};
@@ -254,7 +254,8 @@ pub(crate) fn prepare<'m, 'c>(
 }
 
 /// Scan-only data: [`intensity::prepare_binary`] on the mission's beams and a
-/// copy of the config when the beams' intensities are binary; the mission
+/// copy of the config when the beams' intensities are binary, whose
+/// sequential matches then read a submap ([`SUBMAP_ROTATIONS_SCAN_ONLY`]); the mission
 /// and the config are borrowed as they are otherwise. The effective config
 /// (`config.toml`) carries what was derived.
 fn prepare_scan_only<'m, 'c>(
@@ -271,11 +272,15 @@ fn prepare_scan_only<'m, 'c>(
     }
     let mut mission = mission.into_owned();
     let mut config = config.clone();
-    let derived = intensity::prepare_binary(
+    let mut derived = intensity::prepare_binary(
         &mut mission.beams,
         &mut config.segmentation,
         &mut config.image,
     );
+    config.sequential.submap_rotations = SUBMAP_ROTATIONS_SCAN_ONLY;
+    derived.push(format!(
+        "sequential matches against a submap of the {SUBMAP_ROTATIONS_SCAN_ONLY} rotations before"
+    ));
     let report = IntensityReport { kind, derived };
     (Cow::Owned(mission), Cow::Owned(config), report)
 }

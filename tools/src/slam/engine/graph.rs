@@ -54,8 +54,16 @@ impl<'c> GraphState<'c> {
         let k = self.nodes.len();
         if let Some(prev) = self.nodes.last() {
             let t = Instant::now();
+            let history = sequential::submap_history(
+                &self.nodes,
+                &self.sequential,
+                k,
+                self.config.sequential.submap_rotations,
+                navigation,
+            )?;
             let record = sequential::match_next(
                 prev,
+                &history,
                 &node,
                 k,
                 navigation,
