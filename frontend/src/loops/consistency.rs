@@ -240,20 +240,7 @@ impl ConsistencyGraph {
             if seen[root] || self.conflicts[root].is_empty() {
                 continue;
             }
-            // The component of `root`, in ascending vertex order.
-            let mut component = vec![root];
-            seen[root] = true;
-            let mut head = 0;
-            while head < component.len() {
-                for &u in &self.conflicts[component[head]] {
-                    if !seen[u] {
-                        seen[u] = true;
-                        component.push(u);
-                    }
-                }
-                head += 1;
-            }
-            component.sort_unstable();
+            let component = self.component_of(root, &mut seen);
             work = self.cover_component(&component, work, budget);
         }
         let exact = work <= budget;
@@ -265,21 +252,112 @@ impl ConsistencyGraph {
         Clique { ids, exact }
     }
 
-    /// Updates `in_cover` over one conflict component, with `work` of the
-    /// search's budget spent already; returns the work spent after it.
-    /// Past the budget a component keeps its incumbent.
-    fn cover_component(&mut self, component: &[usize], work: usize, budget: usize) -> usize {
+    /// The members of the last maximum clique ([`Self::max_clique`] ran
+    /// since the last [`Self::add`]) whose place in it is not decided yet,
+    /// by record id, ascending. A loop `u` left out of the clique conflicts
+    /// with some members; the largest clique that takes `u` must drop all
+    /// of them. When that clique is smaller than the maximum by fewer than
+    /// `margin` loops, the members `u` conflicts with are *contested*: two
+    /// groups of loops that exclude each other (e.g. two fits of one
+    /// place's walls) are nearly as well supported, and the maximum may
+    /// turn as more loops arrive. Per component of the conflict graph, one
+    /// bounded cover search per left-out loop (only covers smaller than the
+    /// maximum's plus `margin` are looked for, so most end at once); past
+    /// `MAX_CLIQUE_WORK` the remaining members count as decided.
+    pub fn contested(&self, margin: usize) -> Vec<usize> {
+        let n = self.measurements.len();
+        let mut contested = vec![false; n];
+        let mut seen = vec![false; n];
+        let mut work = 0;
+        for root in 0..n {
+            if seen[root] || self.conflicts[root].is_empty() {
+                continue;
+            }
+            let component = self.component_of(root, &mut seen);
+            let adjacency = self.adjacency(&component);
+            let words = component.len().div_ceil(64);
+            let best = component.iter().filter(|&&v| self.in_cover[v]).count();
+            for (i, &u) in component.iter().enumerate() {
+                let rivals: Vec<usize> = adjacency[i]
+                    .iter()
+                    .map(|j| component[j])
+                    .filter(|&w| !self.in_cover[w])
+                    .collect();
+                if !self.in_cover[u] || rivals.iter().all(|&w| contested[w]) {
+                    continue;
+                }
+                let mut alive = BitSet::empty(words);
+                (0..component.len()).for_each(|j| alive.insert(j));
+                let alive = alive.difference(&adjacency[i]);
+                let mut alive_without_u = alive;
+                alive_without_u.remove(i);
+                let mut search = MinCover {
+                    adjacency: &adjacency,
+                    best: BitSet::empty(words),
+                    best_size: best + margin,
+                    work,
+                    budget: MAX_CLIQUE_WORK,
+                };
+                let forced = adjacency[i].count();
+                search.branch(alive_without_u, adjacency[i].clone(), forced);
+                work = search.work;
+                if work > MAX_CLIQUE_WORK {
+                    break;
+                }
+                if search.best_size < best + margin {
+                    rivals.iter().for_each(|&w| contested[w] = true);
+                }
+            }
+        }
+        let mut ids: Vec<usize> = (0..n)
+            .filter(|&v| contested[v])
+            .map(|v| self.measurements[v].id)
+            .collect();
+        ids.sort_unstable();
+        ids
+    }
+
+    /// The conflict component of `root`, in ascending vertex order; marks
+    /// its vertices in `seen`.
+    fn component_of(&self, root: usize, seen: &mut [bool]) -> Vec<usize> {
+        let mut component = vec![root];
+        seen[root] = true;
+        let mut head = 0;
+        while head < component.len() {
+            for &u in &self.conflicts[component[head]] {
+                if !seen[u] {
+                    seen[u] = true;
+                    component.push(u);
+                }
+            }
+            head += 1;
+        }
+        component.sort_unstable();
+        component
+    }
+
+    /// The conflict rows of `component`'s vertices, over their positions
+    /// in it.
+    fn adjacency(&self, component: &[usize]) -> Vec<BitSet> {
         let local: HashMap<usize, usize> =
             component.iter().enumerate().map(|(i, &v)| (v, i)).collect();
         let m = component.len();
-        let adjacency: Vec<BitSet> = component
+        component
             .iter()
             .map(|&v| {
                 let mut row = BitSet::empty(m.div_ceil(64));
                 self.conflicts[v].iter().for_each(|u| row.insert(local[u]));
                 row
             })
-            .collect();
+            .collect()
+    }
+
+    /// Updates `in_cover` over one conflict component, with `work` of the
+    /// search's budget spent already; returns the work spent after it.
+    /// Past the budget a component keeps its incumbent.
+    fn cover_component(&mut self, component: &[usize], work: usize, budget: usize) -> usize {
+        let m = component.len();
+        let adjacency = self.adjacency(component);
         // The incumbent: the previous cover, plus the later endpoint of
         // every conflict it leaves uncovered (a new vertex).
         let mut incumbent = BitSet::empty(m.div_ceil(64));
@@ -572,6 +650,87 @@ mod tests {
                     "{a} - {b}"
                 );
             }
+        }
+    }
+
+    /// Graph of `groups` (sizes): loops within a group consistent, every
+    /// two groups in conflict, plus `free` loops consistent with all.
+    fn rival_groups(groups: &[usize], free: usize) -> (usize, Vec<(usize, usize)>) {
+        let mut group_of = Vec::new();
+        for (g, &size) in groups.iter().enumerate() {
+            group_of.extend(std::iter::repeat_n(Some(g), size));
+        }
+        group_of.extend(std::iter::repeat_n(None, free));
+        let n = group_of.len();
+        let edges = (0..n)
+            .flat_map(|a| (a + 1..n).map(move |b| (a, b)))
+            .filter(|&(a, b)| match (group_of[a], group_of[b]) {
+                (Some(x), Some(y)) => x == y,
+                _ => true,
+            })
+            .collect();
+        (n, edges)
+    }
+
+    #[test]
+    fn a_group_that_leads_its_rival_by_less_than_the_margin_is_contested() {
+        // Three loops against two (and three that agree with both): the
+        // three win the clique, by one loop.
+        let (n, edges) = rival_groups(&[3, 2], 3);
+        let mut g = graph_with_edges(n, &edges);
+        assert_eq!(g.max_clique().ids, vec![0, 1, 2, 5, 6, 7]);
+        assert_eq!(g.contested(2), vec![0, 1, 2]);
+        assert!(g.contested(1).is_empty());
+        // Against one loop, a lead of two: decided.
+        let (n, edges) = rival_groups(&[3, 1], 3);
+        let mut g = graph_with_edges(n, &edges);
+        assert_eq!(g.max_clique().ids, vec![0, 1, 2, 4, 5, 6]);
+        assert!(g.contested(2).is_empty());
+        // A tie keeps the first group and contests it.
+        let (n, edges) = rival_groups(&[2, 2], 0);
+        let mut g = graph_with_edges(n, &edges);
+        assert_eq!(g.max_clique().ids, vec![0, 1]);
+        assert_eq!(g.contested(1), vec![0, 1]);
+        // No conflict, nothing contested.
+        let (n, edges) = rival_groups(&[4], 2);
+        let mut g = graph_with_edges(n, &edges);
+        assert_eq!(g.max_clique().ids.len(), 6);
+        assert!(g.contested(2).is_empty());
+    }
+
+    #[test]
+    fn contested_members_match_brute_force_on_random_graphs() {
+        let mut rng = ChaCha8Rng::seed_from_u64(17);
+        for trial in 0..60 {
+            let n = rng.random_range(2..=11);
+            let density = rng.random_range(0.4..0.95);
+            let edges = random_edges(&mut rng, n, density);
+            let adjacent = |a: usize, b: usize| edges.contains(&(a, b)) || edges.contains(&(b, a));
+            let mut g = graph_with_edges(n, &edges);
+            let clique = g.max_clique().ids;
+            let margin = rng.random_range(1..=3);
+            // The largest clique that takes `u`, by brute force.
+            let best_with = |u: usize| {
+                let others: Vec<usize> = (0..n).filter(|&v| v != u && adjacent(u, v)).collect();
+                let sub: Vec<(usize, usize)> = edges
+                    .iter()
+                    .filter_map(|&(a, b)| {
+                        let (i, j) = (others.iter().position(|&v| v == a)?, others.iter().position(|&v| v == b)?);
+                        Some((i, j))
+                    })
+                    .collect();
+                1 + brute_force(others.len(), &sub)
+            };
+            let mut expected: Vec<usize> = (0..n)
+                .filter(|&w| clique.contains(&w))
+                .filter(|&w| {
+                    (0..n).any(|u| {
+                        !clique.contains(&u) && !adjacent(u, w) && best_with(u) + margin > clique.len()
+                    })
+                })
+                .collect();
+            expected.sort_unstable();
+            assert_eq!(g.contested(margin), expected, "trial {trial}, margin {margin}");
         }
     }
 

@@ -92,6 +92,10 @@ pub struct LoopCloser<'a> {
     pub chain: DeadReckoningChain,
     /// The current maximum clique.
     pub accepted: Clique,
+    /// Its contested members (ids ascending, [`ConsistencyGraph::contested`]),
+    /// held out of the estimate and of the cover until the clique decides
+    /// them, or the mission pass ends ([`Self::settle`]).
+    held: Vec<usize>,
     /// Loops of the densification pass, accepted against the estimate.
     dense: Vec<LoopMeasurement>,
     /// Clique searches that stopped at the work limit.
@@ -127,6 +131,7 @@ impl<'a> LoopCloser<'a> {
                 ids: Vec::new(),
                 exact: true,
             },
+            held: Vec::new(),
             dense: Vec::new(),
             inexact_cliques: 0,
             matches: 0,

@@ -77,6 +77,12 @@ impl SlamEngine<'_> {
             nodes.iter().map(|n| n.image.rebuilds()).sum()
         };
         let before = rebuilt(&graph.nodes);
+        if graph.closer.settle(&mut graph.estimate)
+            && graph.config.backend.incremental
+            && let Err(e) = graph.estimate.optimise_incremental()
+        {
+            graph.incremental_error.get_or_insert(e.to_string());
+        }
         graph.closer.densify(&graph.nodes, &mut graph.estimate)?;
         tracing::debug!(
             mission_pass = before,

@@ -22,7 +22,7 @@ impl LoopCloser<'_> {
             return;
         }
         self.cover.clear();
-        for &id in &self.accepted.ids {
+        for id in self.in_estimate() {
             if let Some(m) = self.consistency.measurement(id) {
                 self.cover.insert(m.from, m.to);
             }
@@ -48,7 +48,7 @@ impl LoopCloser<'_> {
         estimate: &mut Estimate,
     ) -> bool {
         debug_assert!(self.dense.is_empty(), "densified loops need set_loops");
-        let (left, joined) = sorted_difference(previous, &self.accepted.ids);
+        let (left, joined) = sorted_difference(previous, &self.in_estimate());
         for &id in &left {
             if let Some(m) = self.consistency.measurement(id) {
                 self.cover.remove(m.from, m.to);
@@ -70,10 +70,9 @@ impl LoopCloser<'_> {
     /// metadata: [`Self::attach_metadata`] gives it to the final ones.
     pub(super) fn accepted_edges(&self) -> Vec<(usize, echofield_graph::Edge, Matrix3<f64>)> {
         let primary: Vec<&LoopMeasurement> = self
-            .accepted
-            .ids
-            .iter()
-            .filter_map(|&id| self.consistency.measurement(id))
+            .in_estimate()
+            .into_iter()
+            .filter_map(|id| self.consistency.measurement(id))
             .collect();
         let places = Places::new(
             self.config.cover_spacing_m,
@@ -88,6 +87,29 @@ impl LoopCloser<'_> {
             .chain(self.dense.iter().zip(inflations))
             .filter_map(|(m, inflation)| loop_edge(m, inflation))
             .collect()
+    }
+
+    /// The clique's loops the estimate holds: its members but the held
+    /// ones (ids ascending).
+    pub(super) fn in_estimate(&self) -> Vec<usize> {
+        let (_, kept) = sorted_difference(&self.held, &self.accepted.ids);
+        kept
+    }
+
+    /// Ends the wait for contested loops (the mission pass is over, no
+    /// candidate will come to decide them): the estimate and the cover take
+    /// the whole clique. Returns whether the estimate's loops changed.
+    pub fn settle(&mut self, estimate: &mut Estimate) -> bool {
+        if self.held.is_empty() {
+            return false;
+        }
+        let previous = self.in_estimate();
+        self.held.clear();
+        if !self.dense.is_empty() {
+            self.refresh_cover();
+            return estimate.set_loops(self.accepted_edges());
+        }
+        self.apply_clique_change(&previous, estimate)
     }
 
     /// Gives the estimate's loop edges their metadata ([`loop_metadata`]
@@ -309,5 +331,35 @@ mod tests {
                 "{ids:?}"
             );
         }
+    }
+
+    #[test]
+    fn held_loops_stay_out_of_the_estimate_and_the_cover_until_settled() {
+        let config = LoopConfig {
+            cover_spacing_m: 2.0,
+            ..LoopConfig::default()
+        };
+        let matcher = MatcherConfig::default();
+        let mut closer = closer_on_a_line(&config, &matcher);
+        let mut estimate = line_estimate();
+        let chain = closer.chain.clone();
+        for (id, from, to) in [(7, 3, 25), (9, 5, 30)] {
+            let mut m = measurement(id, from, to);
+            m.z = Se2::new((to - from) as f64, 0.0, 0.0);
+            closer.consistency.add(m, &chain, CONSISTENCY_MAX_CHI2);
+        }
+        closer.accepted.ids = vec![7, 9];
+        closer.held = vec![9];
+        assert!(closer.apply_clique_change(&[], &mut estimate));
+        let s = closer.chain.distances().to_vec();
+        assert_eq!(estimate.loop_ids().collect::<Vec<_>>(), vec![7]);
+        assert!(closer.cover.covers(4, 26, &s));
+        assert!(!closer.cover.covers(6, 31, &s));
+        assert!(closer.settle(&mut estimate));
+        let mut ids: Vec<usize> = estimate.loop_ids().collect();
+        ids.sort_unstable();
+        assert_eq!(ids, vec![7, 9]);
+        assert!(closer.cover.covers(6, 31, &s));
+        assert!(!closer.settle(&mut estimate), "nothing left to settle");
     }
 }

@@ -21,6 +21,13 @@ use rayon::prelude::*;
 const MAX_RETRY_ROUNDS: usize = 3;
 /// Deferred candidates kept waiting at most; older ones stay `deferred`.
 const MAX_WAITING: usize = 64;
+/// Loops by which a maximum clique must lead every clique that takes one
+/// of the loops it leaves out, before the members that loop conflicts with
+/// go into the estimate: a lead of one loop (e.g. three loops against two
+/// at a place whose walls allow two fits) is not yet a decision, since the
+/// next candidates, searched around the estimate, would follow whichever
+/// group the estimate holds.
+const DECISION_MARGIN: usize = 2;
 
 impl LoopCloser<'_> {
     /// Looks for loops of the newest node `k`, then retries deferred
@@ -177,13 +184,15 @@ impl LoopCloser<'_> {
         }
         let clique = self.consistency.max_clique();
         self.inexact_cliques += usize::from(!clique.exact);
-        let previous = std::mem::replace(&mut self.accepted, clique);
+        let previous = self.in_estimate();
+        self.accepted = clique;
+        self.held = self.consistency.contested(DECISION_MARGIN);
         self.validation_time_s += start.elapsed().as_secs_f64();
         if !self.dense.is_empty() {
             // Densified loops' covariances depend on every accepted loop.
             self.refresh_cover();
             return estimate.set_loops(self.accepted_edges());
         }
-        self.apply_clique_change(&previous.ids, estimate)
+        self.apply_clique_change(&previous, estimate)
     }
 }
