@@ -715,7 +715,10 @@ mod tests {
                 let sub: Vec<(usize, usize)> = edges
                     .iter()
                     .filter_map(|&(a, b)| {
-                        let (i, j) = (others.iter().position(|&v| v == a)?, others.iter().position(|&v| v == b)?);
+                        let (i, j) = (
+                            others.iter().position(|&v| v == a)?,
+                            others.iter().position(|&v| v == b)?,
+                        );
                         Some((i, j))
                     })
                     .collect();
@@ -725,12 +728,18 @@ mod tests {
                 .filter(|&w| clique.contains(&w))
                 .filter(|&w| {
                     (0..n).any(|u| {
-                        !clique.contains(&u) && !adjacent(u, w) && best_with(u) + margin > clique.len()
+                        !clique.contains(&u)
+                            && !adjacent(u, w)
+                            && best_with(u) + margin > clique.len()
                     })
                 })
                 .collect();
             expected.sort_unstable();
-            assert_eq!(g.contested(margin), expected, "trial {trial}, margin {margin}");
+            assert_eq!(
+                g.contested(margin),
+                expected,
+                "trial {trial}, margin {margin}"
+            );
         }
     }
 

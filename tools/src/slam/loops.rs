@@ -37,7 +37,13 @@
 //!    loop accepted early can be dropped later when the evidence turns
 //!    against it). Accepted loops become `Loop` edges with the match
 //!    covariance plus the `min_sigma` floor ([`accepted`]); the backend's
-//!    robust kernel on loop edges is the last line of defence.
+//!    robust kernel on loop edges is the last line of defence. Members
+//!    whose place in the clique a rival group nearly as large contests
+//!    ([`ConsistencyGraph::contested`], a lead under `DECISION_MARGIN`
+//!    loops) are held out of the estimate and of the cover until the
+//!    clique leads by the margin or the mission pass ends: the next
+//!    candidates are then searched around an estimate that neither group
+//!    made, so the rival group can still grow.
 //! 5. **Densification** ([`densify`], on by default, after the mission):
 //!    the pairs never examined whose relative pose the estimate already
 //!    knows, and those the mission rejected only for how they were
