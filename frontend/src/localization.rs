@@ -10,7 +10,9 @@
 //!   KLD-sampling resampling (Fox 2003) that adapts the particle count to
 //!   how spread the belief is.
 //! - [`filter`]: [`MonteCarloLocalizer`]: per rotation, the particles move
-//!   by the dead reckoning's relative motion sampled from its covariance,
+//!   by the relative motion since the previous rotation sampled from its
+//!   covariance (the dead reckoning's, fused by the CLI with the sonar's own
+//!   sequential match: `echofield::localize::odometry`),
 //!   are weighted by the score of eq. (5), `s(x) = Σ_i I(x ⊕ p_i)`, of the
 //!   rotation's scan `S_k`, and are resampled; a state machine says whether
 //!   the vehicle is localised, searching, coasting on dead reckoning or

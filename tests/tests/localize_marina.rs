@@ -177,6 +177,19 @@ fn missions_of_other_seeds_converge_from_an_unknown_start_and_hold_the_ate() {
     for seed in [2, 3] {
         let mission = marina(seed);
         let localized = localize(&mission, map, &config).unwrap();
+        // The motion between rotations took the sonar's sequential match
+        // as well as the dead reckoning (`localize::odometry`) on nearly
+        // every rotation of a full-intensity mission.
+        let sonar = localized
+            .rotations
+            .iter()
+            .filter(|r| r.sonar_motion)
+            .count();
+        assert!(
+            sonar * 10 >= localized.rotations.len() * 9,
+            "seed {seed}: the sonar's motion on {sonar} of {} rotations",
+            localized.rotations.len()
+        );
         let states = states(&localized);
         let converged = states
             .iter()

@@ -25,6 +25,7 @@
 //! ```
 
 pub mod map;
+pub mod odometry;
 pub mod outputs;
 pub mod replay;
 pub mod report;

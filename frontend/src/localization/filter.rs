@@ -242,8 +242,9 @@ impl MonteCarloLocalizer {
         }
     }
 
-    /// One rotation (see the module doc): `motion` is the dead reckoning's
-    /// `previous_from_current` and its covariance since the previous step
+    /// One rotation (see the module doc): `motion` is the vehicle's
+    /// `previous_from_current` (the dead reckoning's, or its fusion with
+    /// the sonar's sequential match) and its covariance since the previous step
     /// (`None` at the first), `heading_rad` the compass heading of the
     /// dead reckoning at this rotation's reference time, `points` the scan
     /// `S_k` in the vehicle frame (may be empty).

@@ -7,13 +7,15 @@
 //! and each ready rotation becomes a node built exactly as the SLAM
 //! frontend builds one
 //! ([`build_node`]: the scan `S_k` motion-compensated into the rotation's
-//! central pose). The particle filter then takes the dead reckoning's
-//! motion since the previous rotation (with its covariance), the compass
-//! heading and `S_k`.
+//! central pose). The particle filter then takes the motion since the
+//! previous rotation (the dead reckoning's fused with the sonar's
+//! sequential match, [`super::odometry`], with its covariance), the
+//! compass heading and `S_k`.
 //!
 //! Not here (the SLAM engine has them): the causal yaw-rate check that
 //! raises the heading noise after a gyro fault.
 
+use super::odometry::SonarOdometry;
 use crate::slam::SlamConfig;
 use crate::slam::pipeline::prepare;
 use anyhow::{Context, Result, bail};
@@ -40,10 +42,13 @@ pub struct LocalizedRotation {
     pub stamp_s: f64,
     /// Forward dead reckoning at `stamp_s` (the mission's own frame).
     pub dead_reckoning: Se2,
-    /// The dead reckoning's `previous_from_current` since the previous
-    /// rotation of [`Localized::rotations`] and its covariance in `(x, y, θ)` (m, rad), as
-    /// the filter took it; `None` at the first.
+    /// The motion `previous_from_current` since the previous rotation of
+    /// [`Localized::rotations`] and its covariance in `(x, y, θ)` (m, rad),
+    /// as the filter took it ([`super::odometry`]); `None` at the first.
     pub motion: Option<(Se2, Matrix3<f64>)>,
+    /// Whether the sonar's sequential match went into `motion` (else it is
+    /// the dead reckoning's alone).
+    pub sonar_motion: bool,
     pub step: LocalizationStep,
     /// Wall time of the filter step, s.
     pub filter_s: f64,
@@ -90,6 +95,7 @@ pub fn localize_mission(
         navigation,
         ready,
         filter,
+        odometry: SonarOdometry::new(config),
         rotations: Vec::new(),
         previous_s: None,
     };
@@ -121,6 +127,7 @@ struct Replay<'a> {
     navigation: ForwardFilter,
     ready: ReadyRotations,
     filter: &'a mut MonteCarloLocalizer,
+    odometry: SonarOdometry<'a>,
     rotations: Vec<LocalizedRotation>,
     /// Stamp of the previous localised rotation, s.
     previous_s: Option<f64>,
@@ -173,11 +180,12 @@ impl Replay<'_> {
         };
         let build_s = t.elapsed().as_secs_f64();
         let t = Instant::now();
-        let motion = self
+        let dead_reckoning = self
             .previous_s
             .map(|from_s| nav.relative(from_s, node.stamp_s))
             .transpose()
             .with_context(|| format!("dead reckoning of rotation {}", rotation.index))?;
+        let (motion, sonar_motion) = self.odometry.motion(&node, nav, dead_reckoning)?;
         // A rotation in a DVL gap is weighed too (unlike the SLAM
         // frontend, which does not match it): its scan was compensated with
         // the held velocity, so it is somewhat distorted, but a particle
@@ -192,11 +200,14 @@ impl Replay<'_> {
         let filter_s = t.elapsed().as_secs_f64();
         self.previous_s = Some(node.stamp_s);
         let cloud = particle_cloud(self.filter.particles());
+        let (stamp_s, dead_reckoning) = (node.stamp_s, node.dead_reckoning);
+        self.odometry.push(node);
         self.rotations.push(LocalizedRotation {
             rotation_index: rotation.index,
-            stamp_s: node.stamp_s,
-            dead_reckoning: node.dead_reckoning,
+            stamp_s,
+            dead_reckoning,
             motion,
+            sonar_motion,
             step,
             filter_s,
             build_s,

@@ -71,6 +71,10 @@ pub struct LocalizeReport {
     /// position when known, else the estimate), and the ATE over them.
     pub rotations_far_from_map: usize,
     pub ate_rmse_far_from_map_m: Option<f64>,
+    /// Rotations whose motion from the previous one took the sonar's
+    /// sequential match as well as the dead reckoning
+    /// ([`super::odometry`]).
+    pub sonar_motion_rotations: usize,
     pub particles: Stats,
     /// Wall time of the filter step per rotation, ms.
     pub filter_time_ms: Stats,
@@ -221,6 +225,11 @@ pub fn build_report(
         max_error_m: accuracy.errors.iter().copied().reduce(f64::max),
         rotations_far_from_map: accuracy.far_from_map,
         ate_rmse_far_from_map_m: rmse(&accuracy.far_errors),
+        sonar_motion_rotations: localized
+            .rotations
+            .iter()
+            .filter(|r| r.sonar_motion)
+            .count(),
         particles: column(|r| r.particles as f64),
         filter_time_ms: column(|r| r.filter_ms),
         rotation_time_ms: column(|r| r.filter_ms + r.build_ms),
