@@ -54,7 +54,7 @@ const COASTING_SPREAD_FACTOR: f64 = 3.0;
 /// next rotation, moved by the dead reckoning, rarely fits the same wrong
 /// place again. A filter started at a known pose
 /// ([`MonteCarloLocalizer::start_at`]) needs one.
-const CONFIRM_ROTATIONS: usize = 2;
+pub const CONFIRM_ROTATIONS: usize = 2;
 
 /// Share of the scan's points inside the map's coverage that a searching
 /// filter's fit needs to count towards [`CONFIRM_ROTATIONS`]. Tracking

@@ -9,8 +9,10 @@
 //! ([`build_node`]: the scan `S_k` motion-compensated into the rotation's
 //! central pose). The particle filter then takes the motion since the
 //! previous rotation (the dead reckoning's fused with the sonar's
-//! sequential match, [`super::odometry`], with its covariance), the
-//! compass heading and `S_k`.
+//! sequential match, [`super::odometry`], once the filter has tracked for
+//! `CONFIRM_ROTATIONS` rotations since its last seeding; the dead
+//! reckoning's alone before), with its covariance, the compass heading
+//! and `S_k`.
 //!
 //! Not here (the SLAM engine has them): the causal yaw-rate check that
 //! raises the heading noise after a gyro fault.
@@ -21,6 +23,7 @@ use crate::slam::pipeline::prepare;
 use anyhow::{Context, Result, bail};
 use echofield_datasets::mcap::foxglove::ScanPoint;
 use echofield_frontend::dead_reckoning::{DeadReckoningConfig, ForwardFilter};
+use echofield_frontend::localization::filter::CONFIRM_ROTATIONS;
 use echofield_frontend::localization::{LocalizationStep, MonteCarloLocalizer, Particle};
 use echofield_frontend::nodes::{Skip, build_node};
 use echofield_frontend::replay::{MissionRecord, ReadyRotations, mission_records};
@@ -96,6 +99,7 @@ pub fn localize_mission(
         ready,
         filter,
         odometry: SonarOdometry::new(config),
+        tracked: 0,
         rotations: Vec::new(),
         previous_s: None,
     };
@@ -128,6 +132,8 @@ struct Replay<'a> {
     ready: ReadyRotations,
     filter: &'a mut MonteCarloLocalizer,
     odometry: SonarOdometry<'a>,
+    /// Rotations in a row localised or coasting since the last seeding.
+    tracked: usize,
     rotations: Vec<LocalizedRotation>,
     /// Stamp of the previous localised rotation, s.
     previous_s: Option<f64>,
@@ -185,7 +191,18 @@ impl Replay<'_> {
             .map(|from_s| nav.relative(from_s, node.stamp_s))
             .transpose()
             .with_context(|| format!("dead reckoning of rotation {}", rotation.index))?;
-        let (motion, sonar_motion) = self.odometry.motion(&node, nav, dead_reckoning)?;
+        let fused = self.odometry.motion(&node, nav, dead_reckoning)?;
+        // After a (re)seeding the cloud is no tracking belief yet (the
+        // first weighing leaves a few particles with all the weight, often
+        // a metre or more off): the dead reckoning's wider motion lets it
+        // move to the right place, and the fused, narrower one takes over
+        // once the filter has been localised for as many rotations in a
+        // row as it needs to claim `localised`.
+        let (motion, sonar_motion) = if self.tracked >= CONFIRM_ROTATIONS {
+            fused
+        } else {
+            (dead_reckoning, false)
+        };
         // A rotation in a DVL gap is weighed too (unlike the SLAM
         // frontend, which does not match it): its scan was compensated with
         // the held velocity, so it is somewhat distorted, but a particle
@@ -198,6 +215,11 @@ impl Replay<'_> {
             .filter
             .step(motion.as_ref(), node.dead_reckoning.theta(), points);
         let filter_s = t.elapsed().as_secs_f64();
+        self.tracked = if step.reseeded || !step.state.is_localised() {
+            0
+        } else {
+            self.tracked + 1
+        };
         self.previous_s = Some(node.stamp_s);
         let cloud = particle_cloud(self.filter.particles());
         let (stamp_s, dead_reckoning) = (node.stamp_s, node.dead_reckoning);
