@@ -286,11 +286,12 @@ impl ConsistencyGraph {
                 if !self.in_cover[u] || rivals.iter().all(|&w| contested[w]) {
                     continue;
                 }
+                // `u` in the clique, so all its conflicts in the cover.
                 let mut alive = BitSet::empty(words);
-                (0..component.len()).for_each(|j| alive.insert(j));
+                (0..component.len())
+                    .filter(|&j| j != i)
+                    .for_each(|j| alive.insert(j));
                 let alive = alive.difference(&adjacency[i]);
-                let mut alive_without_u = alive;
-                alive_without_u.remove(i);
                 let mut search = MinCover {
                     adjacency: &adjacency,
                     best: BitSet::empty(words),
@@ -299,7 +300,7 @@ impl ConsistencyGraph {
                     budget: MAX_CLIQUE_WORK,
                 };
                 let forced = adjacency[i].count();
-                search.branch(alive_without_u, adjacency[i].clone(), forced);
+                search.branch(alive, adjacency[i].clone(), forced);
                 work = search.work;
                 if work > MAX_CLIQUE_WORK {
                     break;

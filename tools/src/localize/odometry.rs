@@ -90,13 +90,13 @@ impl<'c> SonarOdometry<'c> {
         let Some(record) = record else {
             return Ok((Some((dr, dr_cov)), false));
         };
-        let fused = record
-            .accepted
-            .then(|| Some((record.measurement?, edge_covariance(&record, seq)?)))
-            .flatten()
-            .and_then(|(z, z_cov)| {
-                fuse(&dr, &with_floor(&dr_cov, &ODOMETRY_MIN_SIGMA), &z, &z_cov)
-            });
+        let sonar = if record.accepted {
+            record.measurement.zip(edge_covariance(&record, seq))
+        } else {
+            None
+        };
+        let dr_floored = with_floor(&dr_cov, &ODOMETRY_MIN_SIGMA);
+        let fused = sonar.and_then(|(z, z_cov)| fuse(&dr, &dr_floored, &z, &z_cov));
         self.sequential.push(record);
         Ok(match fused {
             Some(motion) => (Some(motion), true),
@@ -111,17 +111,14 @@ impl<'c> SonarOdometry<'c> {
             return;
         }
         self.nodes.push(node);
-        let keep = self.config.sequential.submap_rotations + 1;
-        while self.nodes.len() > keep {
-            self.nodes.remove(0);
-            if !self.sequential.is_empty() {
-                self.sequential.remove(0);
-            }
-        }
-        // `sequential` pairs consecutive kept nodes only.
-        while self.sequential.len() >= self.nodes.len() {
-            self.sequential.remove(0);
-        }
+        let dropped = self
+            .nodes
+            .len()
+            .saturating_sub(self.config.sequential.submap_rotations + 1);
+        self.nodes.drain(..dropped);
+        // `sequential[i]` pairs `nodes[i + 1]` with `nodes[i]`.
+        let stale = self.sequential.len().saturating_sub(self.nodes.len() - 1);
+        self.sequential.drain(..stale);
     }
 }
 

@@ -3,6 +3,7 @@
 //! output with its report (see [`report`]).
 
 use super::SlamEngine;
+use super::graph::solve_incrementally;
 use crate::slam::estimate::Estimate;
 use crate::slam::loops::LoopCloser;
 use crate::slam::result::SlamOutput;
@@ -77,12 +78,12 @@ impl SlamEngine<'_> {
             nodes.iter().map(|n| n.image.rebuilds()).sum()
         };
         let before = rebuilt(&graph.nodes);
-        if graph.closer.settle(&mut graph.estimate)
-            && graph.config.backend.incremental
-            && let Err(e) = graph.estimate.optimise_incremental()
-        {
-            graph.incremental_error.get_or_insert(e.to_string());
-        }
+        let settled = graph.closer.settle(&mut graph.estimate);
+        solve_incrementally(
+            &mut graph.estimate,
+            settled && graph.config.backend.incremental,
+            &mut graph.incremental_error,
+        );
         graph.closer.densify(&graph.nodes, &mut graph.estimate)?;
         tracing::debug!(
             mission_pass = before,

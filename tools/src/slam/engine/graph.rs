@@ -78,24 +78,16 @@ impl<'c> GraphState<'c> {
         let incremental = self.config.backend.incremental;
         let (error, schedule) = (&mut self.incremental_error, &mut self.schedule);
         let mut optimise = |estimate: &mut Estimate| -> Result<(), SlamError> {
-            // A failed incremental solve leaves the estimate as it was;
-            // the final batch solve decides.
-            if incremental
-                && schedule.on_change(k)
-                && let Err(e) = estimate.optimise_incremental()
-            {
-                error.get_or_insert(e.to_string());
-            }
+            solve_incrementally(estimate, incremental && schedule.on_change(k), error);
             Ok(())
         };
         self.closer
             .close_loops(k, &self.nodes, &mut self.estimate, &mut optimise)?;
-        if incremental
-            && self.schedule.after_node(k)
-            && let Err(e) = self.estimate.optimise_incremental()
-        {
-            self.incremental_error.get_or_insert(e.to_string());
-        }
+        solve_incrementally(
+            &mut self.estimate,
+            incremental && self.schedule.after_node(k),
+            &mut self.incremental_error,
+        );
         self.loops_s += t.elapsed().as_secs_f64();
         Ok(())
     }
@@ -165,5 +157,14 @@ impl<'c> GraphState<'c> {
         });
         self.estimate
             .add_chain_edge(EdgeKind::Sequential, k - 1, k, z, &cov, metadata)
+    }
+}
+
+/// An incremental solve of `estimate` when `due`. A failed one leaves the
+/// estimate as it was and is kept in `error` (the first only): the final
+/// batch solve decides.
+pub(super) fn solve_incrementally(estimate: &mut Estimate, due: bool, error: &mut Option<String>) {
+    if due && let Err(e) = estimate.optimise_incremental() {
+        error.get_or_insert(e.to_string());
     }
 }

@@ -105,11 +105,20 @@ impl LoopCloser<'_> {
         }
         let previous = self.in_estimate();
         self.held.clear();
+        self.update_estimate(&previous, estimate)
+    }
+
+    /// Brings the cover and the estimate's loop edges from the loops
+    /// `previous` (ids ascending, what the estimate held) to
+    /// [`Self::in_estimate`]: by the change alone while no loop is
+    /// densified, else remade whole (densified loops' covariances depend on
+    /// every accepted loop). Returns whether the estimate's loops changed.
+    pub(super) fn update_estimate(&mut self, previous: &[usize], estimate: &mut Estimate) -> bool {
         if !self.dense.is_empty() {
             self.refresh_cover();
             return estimate.set_loops(self.accepted_edges());
         }
-        self.apply_clique_change(&previous, estimate)
+        self.apply_clique_change(previous, estimate)
     }
 
     /// Gives the estimate's loop edges their metadata ([`loop_metadata`]
@@ -221,17 +230,30 @@ mod tests {
     use crate::slam::estimate::Estimate;
     use echofield_frontend::loops::LoopConfig;
     use echofield_frontend::loops::config::CONSISTENCY_MAX_CHI2;
-    use echofield_frontend::loops::consistency::Clique;
+    use echofield_frontend::loops::consistency::{Clique, LoopMeasurement};
     use echofield_frontend::matcher::MatcherConfig;
     use echofield_graph::{EdgeKind, Se2};
     use nalgebra::Matrix3;
 
-    #[test]
-    fn a_loop_dropped_from_the_clique_no_longer_covers() {
-        let config = LoopConfig {
+    /// Loops kept within 2 m of track cover each other.
+    fn spaced_config() -> LoopConfig {
+        LoopConfig {
             cover_spacing_m: 2.0,
             ..LoopConfig::default()
-        };
+        }
+    }
+
+    /// A loop `from -> to` of `closer_on_a_line`, measured as the line has
+    /// it (`to - from` metres along x).
+    fn line_loop(id: usize, from: usize, to: usize) -> LoopMeasurement {
+        let mut m = measurement(id, from, to);
+        m.z = Se2::new((to - from) as f64, 0.0, 0.0);
+        m
+    }
+
+    #[test]
+    fn a_loop_dropped_from_the_clique_no_longer_covers() {
+        let config = spaced_config();
         let matcher = MatcherConfig::default();
         let mut closer = closer_on_a_line(&config, &matcher);
         let chain = closer.chain.clone();
@@ -297,10 +319,7 @@ mod tests {
 
     #[test]
     fn a_clique_change_ends_where_remaking_every_loop_ends() {
-        let config = LoopConfig {
-            cover_spacing_m: 2.0,
-            ..LoopConfig::default()
-        };
+        let config = spaced_config();
         let matcher = MatcherConfig::default();
         let (mut by_change, mut remade) = (
             closer_on_a_line(&config, &matcher),
@@ -310,8 +329,7 @@ mod tests {
         for closer in [&mut by_change, &mut remade] {
             let chain = closer.chain.clone();
             for (id, from, to) in [(7, 3, 25), (9, 5, 30), (12, 1, 38), (15, 10, 22)] {
-                let mut m = measurement(id, from, to);
-                m.z = Se2::new((to - from) as f64, 0.0, 0.0);
+                let mut m = line_loop(id, from, to);
                 m.covariance *= 0.01 * id as f64;
                 closer.consistency.add(m, &chain, CONSISTENCY_MAX_CHI2);
             }
@@ -335,17 +353,13 @@ mod tests {
 
     #[test]
     fn held_loops_stay_out_of_the_estimate_and_the_cover_until_settled() {
-        let config = LoopConfig {
-            cover_spacing_m: 2.0,
-            ..LoopConfig::default()
-        };
+        let config = spaced_config();
         let matcher = MatcherConfig::default();
         let mut closer = closer_on_a_line(&config, &matcher);
         let mut estimate = line_estimate();
         let chain = closer.chain.clone();
         for (id, from, to) in [(7, 3, 25), (9, 5, 30)] {
-            let mut m = measurement(id, from, to);
-            m.z = Se2::new((to - from) as f64, 0.0, 0.0);
+            let m = line_loop(id, from, to);
             closer.consistency.add(m, &chain, CONSISTENCY_MAX_CHI2);
         }
         closer.accepted.ids = vec![7, 9];

@@ -188,11 +188,6 @@ impl LoopCloser<'_> {
         self.accepted = clique;
         self.held = self.consistency.contested(DECISION_MARGIN);
         self.validation_time_s += start.elapsed().as_secs_f64();
-        if !self.dense.is_empty() {
-            // Densified loops' covariances depend on every accepted loop.
-            self.refresh_cover();
-            return estimate.set_loops(self.accepted_edges());
-        }
-        self.apply_clique_change(&previous, estimate)
+        self.update_estimate(&previous, estimate)
     }
 }
