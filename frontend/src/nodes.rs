@@ -10,7 +10,10 @@
 //! node (its dead-reckoning edges keep the chain connected and its image can
 //! still be matched against); its scan is empty.
 //!
-//! Rotations are built one at a time, as they complete.
+//! Rotations are built one at a time, as they complete. Which of them
+//! become nodes is [`spacing`]'s rule (every one by default).
+
+pub mod spacing;
 
 use crate::dead_reckoning::Navigation;
 use crate::error::{FrontendError, StageError};

@@ -71,6 +71,13 @@ pub struct RotationConfig {
     /// library callers may set it): half a turn: with `keep_partial`, less than that cannot be matched reliably.
     #[serde(skip)]
     pub min_partial_coverage_rad: f64,
+    /// A rotation becomes a node only when the dead reckoning moved it
+    /// this far from the last node, in metres of translation plus the
+    /// heading change times half the beams' reach (keyframe selection:
+    /// `crate::nodes::spacing`); the others are dropped. 0 makes every
+    /// rotation a node. Default 0; slow or long missions set about 2 m
+    /// (`echofield bench-long` uses `--node-spacing-m`).
+    pub node_spacing_m: f64,
 }
 
 impl Default for RotationConfig {
@@ -80,6 +87,7 @@ impl Default for RotationConfig {
             beam_period_s: None,
             keep_partial: false,
             min_partial_coverage_rad: PI,
+            node_spacing_m: 0.0,
         }
     }
 }
@@ -107,6 +115,12 @@ impl RotationConfig {
             return Err(FrontendError::config(
                 "min_partial_coverage_rad",
                 format!("must be in (0, 2π], got {}", self.min_partial_coverage_rad),
+            ));
+        }
+        if !(self.node_spacing_m.is_finite() && (0.0..=1000.0).contains(&self.node_spacing_m)) {
+            return Err(FrontendError::config(
+                "node_spacing_m",
+                format!("must be in [0, 1000] m, got {}", self.node_spacing_m),
             ));
         }
         Ok(())

@@ -18,13 +18,15 @@ Examples:
   # Only the smaller sizes, with a pipeline config
   echofield bench-long --output out/bench-long --speeds 0.4,0.2 --config my.toml
 
-  # Every loop pair kept (no sparsification), as the default `run`
-  echofield bench-long --output out/bench-long --cover-spacing-m 0
+  # Every loop pair kept and every rotation a node (no sparsification),
+  # as the default `run`
+  echofield bench-long --output out/bench-long --cover-spacing-m 0 --node-spacing-m 0
 
 The simulated marina is surveyed along the same route at each cruise speed
 ([vehicle] cruise_speed_mps of the simulator), so slower missions see the
 same quays with more rotations. The runs sparsify loops with
---cover-spacing-m (loops.cover_spacing_m, default 2 m here, 0 in `run`).
+--cover-spacing-m (loops.cover_spacing_m, default 2 m here, 0 in `run`)
+and nodes with --node-spacing-m (rotation.node_spacing_m, likewise).
 Each mission is written to OUTPUT as
 marina-<speed>.mcap and run by `echofield run`'s pipeline in a child
 process (outputs in OUTPUT/run-<speed>), whose peak resident memory
@@ -55,6 +57,10 @@ pub struct Args {
     /// of track; it replaces the config's. 0 keeps every loop pair.
     #[arg(long, default_value_t = 2.0)]
     pub cover_spacing_m: f64,
+    /// `rotation.node_spacing_m` of the runs (keyframe selection), metres;
+    /// it replaces the config's. 0 makes every rotation a node.
+    #[arg(long, default_value_t = 2.0)]
+    pub node_spacing_m: f64,
     /// Internal: run this mission in this process and print its peak
     /// memory (the parent's child process).
     #[arg(long, hide = true)]
@@ -65,6 +71,7 @@ pub struct Args {
 struct Row {
     speed_mps: f64,
     rotations: usize,
+    nodes: usize,
     candidates: usize,
     accepted: usize,
     rebuilt: usize,
@@ -77,12 +84,7 @@ struct Row {
 
 pub fn run(args: Args) -> Result<()> {
     if let Some(mission) = &args.child {
-        return run_child(
-            mission,
-            &args.output,
-            args.config.as_deref(),
-            args.cover_spacing_m,
-        );
+        return run_child(mission, &args.output, args.config.as_deref(), &args);
     }
     if args.speeds.is_empty() || args.speeds.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
         bail!("--speeds must be positive cruise speeds in m/s");
@@ -91,9 +93,9 @@ pub fn run(args: Args) -> Result<()> {
         .with_context(|| format!("cannot create folder {}", args.output.display()))?;
     let mut rows = Vec::new();
     println!(
-        "| cruise speed (m/s) | rotations | loop candidates | loops accepted | images rebuilt | time (s) | CPU time (s) | peak memory (MB) | ATE (DR) (m) |"
+        "| cruise speed (m/s) | rotations | nodes | loop candidates | loops accepted | images rebuilt | time (s) | CPU time (s) | peak memory (MB) | ATE (DR) (m) |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|");
     for &speed in &args.speeds {
         let mission = args.output.join(format!("marina-{speed}.mcap"));
         simulate(speed, args.seed, &mission)?;
@@ -102,9 +104,10 @@ pub fn run(args: Args) -> Result<()> {
             v.map_or_else(|| "n/a".to_string(), |v| format!("{v:.digits$}"))
         };
         println!(
-            "| {} | {} | {} | {} | {} | {:.1} | {} | {} | {} ({}) |",
+            "| {} | {} | {} | {} | {} | {} | {:.1} | {} | {} | {} ({}) |",
             row.speed_mps,
             row.rotations,
+            row.nodes,
             row.candidates,
             row.accepted,
             row.rebuilt,
@@ -155,7 +158,9 @@ fn measure(speed_mps: f64, mission: &Path, args: &Args) -> Result<Row> {
         .arg("--child")
         .arg(mission)
         .arg("--cover-spacing-m")
-        .arg(args.cover_spacing_m.to_string());
+        .arg(args.cover_spacing_m.to_string())
+        .arg("--node-spacing-m")
+        .arg(args.node_spacing_m.to_string());
     if let Some(config) = &args.config {
         command.arg("--config").arg(config);
     }
@@ -188,6 +193,7 @@ fn measure(speed_mps: f64, mission: &Path, args: &Args) -> Result<Row> {
     Ok(Row {
         speed_mps,
         rotations: count("rotations"),
+        nodes: count("nodes"),
         candidates: count("loop_candidates"),
         accepted: count("loops_accepted"),
         rebuilt: count("images_rebuilt"),
@@ -199,17 +205,14 @@ fn measure(speed_mps: f64, mission: &Path, args: &Args) -> Result<Row> {
     })
 }
 
-/// The child: runs the pipeline on `mission`, writes the outputs to
-/// `output` and prints `peak_kb N`, its peak resident memory, and
-/// `cpu_s T`, its CPU time.
-fn run_child(
-    mission_path: &Path,
-    output: &Path,
-    config: Option<&Path>,
-    cover_spacing_m: f64,
-) -> Result<()> {
+/// The child: runs the pipeline on `mission` with `config` and the
+/// sparsification spacings of `args`, writes the outputs to `output` and
+/// prints `peak_kb N`, its peak resident memory, and `cpu_s T`, its CPU
+/// time.
+fn run_child(mission_path: &Path, output: &Path, config: Option<&Path>, args: &Args) -> Result<()> {
     let mut config = SlamConfig::from_optional_toml_file(config)?;
-    config.loops.cover_spacing_m = cover_spacing_m;
+    config.loops.cover_spacing_m = args.cover_spacing_m;
+    config.rotation.node_spacing_m = args.node_spacing_m;
     let mut mission = load_mission(mission_path)?;
     let result = run_mission_taking_beams(&mut mission, &config, &NoProgress)
         .with_context(|| format!("SLAM on {} failed", mission_path.display()))?;

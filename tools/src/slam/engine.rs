@@ -65,6 +65,7 @@ use super::config::SlamConfig;
 use super::result::{IntensityReport, SkippedRotation, StageTimings};
 use echofield_frontend::dead_reckoning::Navigation;
 use echofield_frontend::intensity::IntensityKind;
+use echofield_frontend::nodes::spacing::NodeSpacing;
 use echofield_frontend::nodes::{NodeData, NodePlacement, Skip, build_node_from};
 use echofield_frontend::replay::ReadyRotations;
 use echofield_frontend::rotation::Rotation;
@@ -121,6 +122,8 @@ pub struct SlamEngine<'c> {
     /// The farthest range any beam reaches, m.
     reach_m: f64,
     graph: GraphState<'c>,
+    /// Which ready rotations become nodes (`rotation.node_spacing_m`).
+    spacing: NodeSpacing,
     skipped: Vec<SkippedRotation>,
     latencies_s: Vec<f64>,
     /// Dead reckoning and node building so far (the other stages are
@@ -193,6 +196,7 @@ impl<'c> SlamEngine<'c> {
             rotation_ranges: Vec::new(),
             reach_m: 0.0,
             graph: GraphState::new(config)?,
+            spacing: NodeSpacing::new(config.rotation.node_spacing_m),
             skipped: Vec::new(),
             latencies_s: Vec::new(),
             timings: StageTimings::default(),
@@ -266,7 +270,8 @@ impl<'c> SlamEngine<'c> {
     /// are ready (or at the end), their nodes built in parallel.
     fn process_ready(&mut self) -> Result<Vec<NodeEvent>, SlamError> {
         let covered_s = self.navigation.covered_until_s();
-        let rotations = self.ready.take_ready(covered_s, self.batch_size);
+        let mut rotations = self.ready.take_ready(covered_s, self.batch_size);
+        self.thin(&mut rotations);
         if rotations.is_empty() {
             return Ok(Vec::new());
         }
@@ -279,6 +284,25 @@ impl<'c> SlamEngine<'c> {
             events.extend(self.add(rotation, node, build_s)?);
         }
         Ok(events)
+    }
+
+    /// Drops from `rotations` those that [`NodeSpacing`] does not make
+    /// nodes (their beams go with the next node's build). A rotation the
+    /// navigation does not place is kept, to be skipped and reported.
+    fn thin(&mut self, rotations: &mut Vec<Rotation>) {
+        if self.config.rotation.node_spacing_m <= 0.0 {
+            return;
+        }
+        let Some(navigation) = self.navigation.current() else {
+            return;
+        };
+        let (spacing, reach_m) = (&mut self.spacing, self.reach_m);
+        rotations.retain(
+            |rotation| match navigation.pose_at(rotation.reference_stamp_s) {
+                Ok(pose) => spacing.keep(&pose, reach_m),
+                Err(_) => true,
+            },
+        );
     }
 
     /// The nodes of `rotations` (consecutive, the oldest pending ones), in

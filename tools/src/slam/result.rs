@@ -335,6 +335,9 @@ pub struct Report {
     /// Nodes of the graph (rotations that could be navigated).
     pub nodes: usize,
     pub skipped_rotations: Vec<SkippedRotation>,
+    /// Rotations dropped by the node spacing (`rotation.node_spacing_m`;
+    /// 0 without it): `rotations = nodes + skipped + thinned`.
+    pub thinned_rotations: usize,
     /// Nodes with a usable scan.
     pub nodes_with_scan: usize,
     pub sequential_matches: usize,

@@ -106,6 +106,7 @@ impl<'c> SlamEngine<'c> {
         };
         let extras = ReportExtras {
             skipped: self.skipped,
+            thinned: self.spacing.thinned(),
             timings,
             time_gaps,
             odometry_scale,
@@ -185,6 +186,8 @@ struct Finished<'c> {
 /// What the report takes over from the finish.
 struct ReportExtras {
     skipped: Vec<SkippedRotation>,
+    /// Rotations the node spacing dropped.
+    thinned: usize,
     timings: StageTimings,
     time_gaps: Vec<TimeGap>,
     odometry_scale: Option<OdometryScale>,
@@ -203,6 +206,7 @@ fn unevaluated_report(run: &Finished, extras: ReportExtras) -> Report {
         rotations: run.rotations,
         nodes: run.nodes.len(),
         skipped_rotations: extras.skipped,
+        thinned_rotations: extras.thinned,
         nodes_with_scan: run.nodes.iter().filter(|n| n.has_scan()).count(),
         sequential_matches: sequential.len(),
         sequential_accepted: sequential.iter().filter(|s| s.accepted).count(),
