@@ -202,6 +202,11 @@ pub struct DeadReckoningConfig {
     pub heading_offset_rad: f64,
     /// Model the DVL's lever arm (`vehicle_from_dvl` translation): the
     /// instrument measures `(u, v) + r × ℓ`. Default true.
+    ///
+    /// Not a config key (`#[serde(skip)]`: config files keep the default;
+    /// library callers may set it): the lever arm is the mounting's
+    /// (`[mounting]`); a DVL at the vehicle's origin has none to compensate.
+    #[serde(skip)]
     pub lever_arm_compensation: bool,
     /// Smooth the filtered trajectory with a backward (Rauch-Tung-Striebel)
     /// pass, so every pose uses the records before and after it; false
