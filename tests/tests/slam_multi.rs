@@ -549,3 +549,42 @@ fn the_merged_folder_holds_the_graph_the_mosaic_and_the_mcap() {
         );
     }
 }
+
+/// The real halves with the head's yaw moved within `calibrate`'s own
+/// uncertainty (±1.6°): at some yaws the largest set of agreeing probes
+/// places the first half on a wrong fit, which no cross-mission loop
+/// confirms (or fewer than three probes agree). A smaller agreeing set's
+/// placement that cross-mission loops confirm is then taken
+/// (`Placement::alternative`), and every yaw merges.
+#[test]
+fn the_real_halves_merge_across_the_yaws_calibrate_allows() {
+    let mission = stpere_point_set_mission(Some(SweepTiming::AngleIncreasing));
+    let calibration = calibrate_mission(&mission, &CalibrateSettings::default()).unwrap();
+    let cut_s = mission.beams[60 * 200].stamp_s;
+    let (first, second) = split_mission_at(&mission, cut_s);
+    for offset_deg in [0.6, 0.9] {
+        let mut mounting = calibration.mounting_config();
+        mounting.sonar_yaw_deg = mounting.sonar_yaw_deg.map(|y| y + offset_deg);
+        let config = SlamConfig {
+            mounting,
+            ..SlamConfig::default()
+        };
+        let a = run_mission(&first, &config, &NoProgress).unwrap();
+        let b = run_mission(&second, &config, &NoProgress).unwrap();
+        let out = combine(vec![a, b], &config).unwrap();
+        let report = &out.report;
+        let placement = out.placements[out.order[1]].as_ref().unwrap();
+        let (estimate, truth) = merged_with_truth(&out, &[0, 1]);
+        let ate = aligned_position_rmse(&estimate, &truth);
+        eprintln!(
+            "yaw {offset_deg:+}°: merged {}, alternative {:?}, {} cross loops, ATE {ate:.3} m",
+            report.merged, placement.alternative, report.cross_loops_accepted
+        );
+        assert!(
+            report.merged && report.cross_loops_accepted >= 5,
+            "{:?}",
+            report.warnings
+        );
+        assert!(ate <= 1.2, "yaw {offset_deg:+}°: ATE {ate:.3} m");
+    }
+}

@@ -15,7 +15,12 @@
 //!    before it ([`placement`]): a global search of several probes of its
 //!    scans over the map's likelihood field, accepted only when enough
 //!    probes agree. No shared start pose is assumed; only the heading
-//!    reference (the compass) is shared.
+//!    reference (the compass) is shared. The placement must then get a
+//!    cross-mission loop accepted ([`merge::confirming_loops`]); when it
+//!    gets none, or too few probes agreed, the placement of a smaller
+//!    agreeing set that [`ALTERNATIVE_MIN_LOOPS`] loops confirm is taken
+//!    ([`confirm_placement`]): on the real St Pere halves the largest set
+//!    can agree on the fit of a near-parallel quay.
 //! 4. The placed missions become one graph ([`merge`]): cross-mission loop
 //!    candidates are matched and checked like a run's loops, and the graph
 //!    is solved with only the anchor's first node fixed.
@@ -200,7 +205,7 @@ pub struct Definitions {
 
 const DEFINITIONS: Definitions = Definitions {
     merged_ate_rmse_m: "position RMSE of every merged node (all missions) after one SE(2) fit onto the ground truth at the node stamps, m",
-    placement: "map_from_mission [x_m, y_m, theta_rad]: the mission's world frame in the anchor's (the map frame); found by probes of several consecutive scans searched over the map's likelihood field, accepted when at least 3 usable probes agree",
+    placement: "map_from_mission [x_m, y_m, theta_rad]: the mission's world frame in the anchor's (the map frame); found by probes of several consecutive scans searched over the map's likelihood field, accepted when at least 3 usable probes agree and it gets at least one cross-mission loop accepted (confirming_loops); otherwise the placement of a smaller agreeing set (of at least 2 probes) that at least 5 cross-mission loops confirm is taken (alternative: its index, 0-based), and with none the first stands",
     fix_prior: "what became of a mission's position fixes (the /position/fix channel): map (the anchor's fixes are the map's side of the others' priors), unused (too few, too little spread or no counterpart on the map to give a prior), confirmed (the placement from the scans lies within the prior's gate, 3 sigma), rejected (it does not, or nothing was found within the prior: the fixes were not trusted)",
 };
 
@@ -279,7 +284,14 @@ pub fn combine_with_fixes(
     }
     for position in 1..order.len() {
         let m = order[position];
-        let placement = place_on_earlier(&runs, fixes, &order[..position], &transforms, m)?;
+        let mut placement = place_on_earlier(&runs, fixes, &order[..position], &transforms, m)?;
+        confirm_placement(
+            &runs,
+            &order[..=position],
+            &transforms,
+            &mut placement,
+            config,
+        )?;
         warnings.extend(placement_warnings(&runs[m], m, &placement, fixes.get(m)));
         transforms[m] = placement.map_from_mission;
         placements[m] = Some(placement);
@@ -325,6 +337,55 @@ pub fn combine_with_fixes(
     }
     output.report.time_s = start.elapsed().as_secs_f64();
     Ok(output)
+}
+
+/// Alternative placements are taken only when cross-mission loops
+/// confirm one: at least this many accepted (a wrong place passes a few
+/// loop checks by chance far more rarely than this many).
+pub const ALTERNATIVE_MIN_LOOPS: usize = 5;
+
+/// Checks `placement` of mission `m`, the last of `order` (the earlier
+/// ones placed by `transforms`), by the cross-mission loops it gets
+/// accepted ([`merge::confirming_loops`]). A placement with at least one
+/// stands. Otherwise (none, or not placed) the alternatives of smaller
+/// agreeing sets are tried in order, and the first with the most loops,
+/// at least [`ALTERNATIVE_MIN_LOOPS`], becomes the placement; with none
+/// the placement stays as it was. Errors: a failed match.
+fn confirm_placement(
+    runs: &[SlamOutput],
+    order: &[usize],
+    transforms: &[Option<Se2>],
+    placement: &mut Placement,
+    config: &SlamConfig,
+) -> Result<()> {
+    let Some(&m) = order.last() else {
+        return Ok(());
+    };
+    let mut trial = transforms.to_vec();
+    let mut loops_at = |t: Se2| {
+        trial[m] = Some(t);
+        merge::confirming_loops(runs, &trial, order, config)
+    };
+    if let Some(t) = placement.map_from_mission {
+        let n = loops_at(t)?;
+        placement.confirming_loops = Some(n);
+        if n > 0 {
+            return Ok(());
+        }
+    }
+    let mut best: Option<(usize, usize)> = None;
+    for (k, &t) in placement.alternatives.iter().enumerate() {
+        let n = loops_at(t)?;
+        if n >= ALTERNATIVE_MIN_LOOPS && best.is_none_or(|(_, b)| n > b) {
+            best = Some((k, n));
+        }
+    }
+    if let Some((k, n)) = best {
+        placement.map_from_mission = Some(placement.alternatives[k]);
+        placement.confirming_loops = Some(n);
+        placement.alternative = Some(k);
+    }
+    Ok(())
 }
 
 /// Logs `message` as a warning and returns it for the report.
@@ -401,6 +462,19 @@ fn placement_warnings(
                 ", off by {d:.1} m ({:.1} sigma)",
                 d / check.prior.sigma_m
             ))
+        )));
+    }
+    if let (Some(k), Some(n)) = (placement.alternative, placement.confirming_loops) {
+        warnings.push(warn(format!(
+            "{name}: the largest set of agreeing probes ({} of {}) gave {}; the placement of a smaller agreeing set (alternative {}) is confirmed by {n} cross-mission loops and taken",
+            placement.agreeing,
+            placement.probes.len(),
+            if placement.agreeing >= placement::MIN_AGREEING {
+                "a placement that no cross-mission loop confirms"
+            } else {
+                "no placement"
+            },
+            k + 1
         )));
     }
     if placement.map_from_mission.is_none() {

@@ -178,6 +178,40 @@ pub fn merge(
     })
 }
 
+/// The cross-mission loops that would be accepted for mission `m`, the
+/// last of `order` (input indices, the anchor first), at its placement
+/// in `placements`: its candidates against the earlier placed missions,
+/// matched and judged as [`merge`] does, before any solve. 0 when fewer
+/// than two of `order` are placed. Errors: a failed match.
+pub fn confirming_loops(
+    runs: &[SlamOutput],
+    placements: &[Option<Se2>],
+    order: &[usize],
+    config: &SlamConfig,
+) -> Result<usize> {
+    let joint = Joint::of(runs, placements, order)?;
+    let Some(&(last, first)) = joint.members.last() else {
+        return Ok(0);
+    };
+    if joint.members.len() < 2 || order.last() != Some(&last) {
+        return Ok(0);
+    }
+    let candidates: Vec<Candidate> =
+        cross_candidates(&joint.members, &joint.placed_poses, &joint.nodes, config)
+            .into_iter()
+            .filter(|c| c.to >= first)
+            .collect();
+    let records: Vec<LoopRecord> = candidates
+        .par_iter()
+        .map(|c| examine(c, c.to, &joint.nodes, &config.matcher, &config.loops))
+        .collect::<Result<_, _>>()
+        .context("cross-mission loop matches")?;
+    Ok(records
+        .into_iter()
+        .filter(|r| joint.judge(r.clone()).record.accepted)
+        .count())
+}
+
 /// The placed missions joined, before any cross-mission loop: one graph,
 /// the nodes' data and placed poses under joint ids, and each joint id's
 /// `(mission, node)`.

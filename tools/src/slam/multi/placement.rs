@@ -74,6 +74,10 @@ const PEAKS: usize = 6;
 const PEAK_SEPARATION_M: f64 = 4.0;
 /// Probes that must agree for a placement.
 pub const MIN_AGREEING: usize = 3;
+/// Other agreeing sets (of at least two probes) kept as alternative
+/// placements, at most: tried, in order, only when the placement is
+/// confirmed by no cross-mission loop (see `super::merge`).
+pub const MAX_ALTERNATIVES: usize = 4;
 /// Agreement of two probes: each one's `map_from_mission` puts the other
 /// probe's middle node within these of where that probe found it.
 pub const AGREE_M: f64 = 1.5;
@@ -157,6 +161,20 @@ pub struct Placement {
     pub probes: Vec<ProbeResult>,
     /// Probes in the agreeing set.
     pub agreeing: usize,
+    /// `map_from_mission` of the other agreeing sets of at least two
+    /// probes (the largest first, at most [`MAX_ALTERNATIVES`]), each
+    /// refined on its probes: the candidates when `map_from_mission` is
+    /// confirmed by no cross-mission loop or missing.
+    #[serde(skip)]
+    pub alternatives: Vec<Se2>,
+    /// Cross-mission loops its placement gets accepted before the merged
+    /// solve (`None`: not placed, or not checked).
+    pub confirming_loops: Option<usize>,
+    /// The placement is the alternative of this index (0-based in the
+    /// order above), taken because the largest agreeing set's placement
+    /// was confirmed by no cross-mission loop or there was none; `None`:
+    /// the largest set's.
+    pub alternative: Option<usize>,
     /// The prior it was searched with, and whether the placement agrees
     /// with it.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -311,15 +329,18 @@ pub fn place(
                 steps: (window / COARSE_STEP_RAD).ceil().max(1.0) as i64,
             }
         };
-        let (map_from_mission, results, agreeing) = search(map, &probes, own, bounded);
-        if map_from_mission.is_some() {
-            placement = Some((map_from_mission, results, agreeing, true));
+        let found = search(map, &probes, own, bounded);
+        if found.map_from_mission.is_some() {
+            placement = Some((found, true));
         }
     }
-    let (map_from_mission, probes, agreeing, bounded) = placement.unwrap_or_else(|| {
-        let (t, r, a) = search(map, &probes, own, global);
-        (t, r, a, false)
-    });
+    let (found, bounded) = placement.unwrap_or_else(|| (search(map, &probes, own, global), false));
+    let Found {
+        map_from_mission,
+        results: probes,
+        agreeing,
+        alternatives,
+    } = found;
     let prior = prior.map(|prior| {
         let offset_m = map_from_mission.map(|t| {
             own.iter()
@@ -339,41 +360,64 @@ pub fn place(
     Placement {
         map_from_mission,
         agreeing,
+        alternatives,
+        confirming_loops: None,
+        alternative: None,
         probes,
         prior,
         time_s: start.elapsed().as_secs_f64(),
     }
 }
 
+/// What [`search`] found.
+struct Found {
+    map_from_mission: Option<Se2>,
+    results: Vec<ProbeResult>,
+    /// Probes in the agreeing set.
+    agreeing: usize,
+    /// See [`Placement::alternatives`].
+    alternatives: Vec<Se2>,
+}
+
 /// Searches every probe over its `region` (a function of its middle
-/// node's own pose), then the agreeing set and the joint refinement:
-/// `(map_from_mission, probe results, agreeing probes)`.
+/// node's own pose), then the agreeing sets and the joint refinement of
+/// each: the largest set (of at least [`MIN_AGREEING`]) gives the
+/// placement, the others of at least two probes the alternatives.
 fn search(
     map: &MapFields,
     probes: &[Probe],
     own: &[Se2],
     region: impl Fn(&Se2) -> Region + Sync,
-) -> (Option<Se2>, Vec<ProbeResult>, usize) {
+) -> Found {
     let mut results: Vec<ProbeResult> = probes
         .par_iter()
         .map(|p| search_probe(map, p, &own[p.node], &region(&own[p.node])))
         .collect();
-    let agreeing = agreeing_set(&results, own);
-    let map_from_mission = if agreeing.len() >= MIN_AGREEING {
-        for &i in &agreeing {
+    let sets = agreeing_sets(&results, own);
+    let refined = |set: &[usize]| {
+        let chosen: Vec<&Probe> = set.iter().map(|&i| &probes[i]).collect();
+        refine_jointly(map, &chosen, own, results[set[0]].map_from_mission)
+    };
+    let best = sets.first().filter(|set| set.len() >= MIN_AGREEING);
+    let map_from_mission = best.map(|set| refined(set));
+    let alternatives = sets
+        .iter()
+        .skip(usize::from(best.is_some()))
+        .filter(|set| set.len() >= 2)
+        .take(MAX_ALTERNATIVES)
+        .map(|set| refined(set))
+        .collect();
+    if let Some(set) = best {
+        for &i in set {
             results[i].agrees = true;
         }
-        let chosen: Vec<&Probe> = agreeing.iter().map(|&i| &probes[i]).collect();
-        Some(refine_jointly(
-            map,
-            &chosen,
-            own,
-            results[agreeing[0]].map_from_mission,
-        ))
-    } else {
-        None
-    };
-    (map_from_mission, results, agreeing.len())
+    }
+    Found {
+        map_from_mission,
+        results,
+        agreeing: sets.first().map_or(0, Vec::len),
+        alternatives,
+    }
 }
 
 /// Position fixes of one mission in a frame common to every mission (e.g.
@@ -588,33 +632,42 @@ fn climb(score: impl Fn(&Se2) -> f64, start: Se2) -> Se2 {
     pose
 }
 
-/// The largest set of usable probes that agree with one another (see
-/// [`AGREE_M`]), indices in probe order; the first is the set's seed.
-fn agreeing_set(results: &[ProbeResult], own: &[Se2]) -> Vec<usize> {
+/// The sets of usable probes that agree with one another (see
+/// [`AGREE_M`]): for each usable probe (the seed, first in its set, the
+/// others in probe order) the probes that agree with it both ways. Sets
+/// within an earlier one are dropped; the largest come first, equal sizes
+/// in seed order (so the first is the largest set of the lowest seed).
+fn agreeing_sets(results: &[ProbeResult], own: &[Se2]) -> Vec<Vec<usize>> {
     let agree = |a: &ProbeResult, b: &ProbeResult| {
         let predicted = a.map_from_mission.compose(&own[b.node]);
         distance_m(&predicted, &b.map_from_node) <= AGREE_M
             && wrap_angle(predicted.theta() - b.map_from_node.theta()).abs() <= AGREE_RAD
     };
-    let mut best: Vec<usize> = Vec::new();
-    for (i, a) in results.iter().enumerate() {
-        if !a.usable {
-            continue;
-        }
-        let set: Vec<usize> = results
-            .iter()
-            .enumerate()
-            .filter(|(j, b)| b.usable && (*j == i || (agree(a, b) && agree(b, a))))
-            .map(|(j, _)| j)
-            .collect();
-        if set.len() > best.len() {
-            // The seed first.
-            let mut ordered = vec![i];
-            ordered.extend(set.into_iter().filter(|&j| j != i));
-            best = ordered;
+    let mut sets: Vec<Vec<usize>> = results
+        .iter()
+        .enumerate()
+        .filter(|(_, a)| a.usable)
+        .map(|(i, a)| {
+            let mut set = vec![i];
+            set.extend(
+                results
+                    .iter()
+                    .enumerate()
+                    .filter(|(j, b)| *j != i && b.usable && agree(a, b) && agree(b, a))
+                    .map(|(j, _)| j),
+            );
+            set
+        })
+        .collect();
+    // Stable: equal sizes stay in seed order.
+    sets.sort_by_key(|set| std::cmp::Reverse(set.len()));
+    let mut kept: Vec<Vec<usize>> = Vec::new();
+    for set in sets {
+        if !kept.iter().any(|k| set.iter().all(|i| k.contains(i))) {
+            kept.push(set);
         }
     }
-    best
+    kept
 }
 
 /// `map_from_mission` refined on every agreeing probe at once, the climb
@@ -650,6 +703,52 @@ fn refine_jointly(map: &MapFields, probes: &[&Probe], own: &[Se2], start: Se2) -
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A usable probe of node `node` (own pose `own[node]`) that puts the
+    /// mission at `map_from_mission`.
+    fn probe(node: usize, own: &[Se2], map_from_mission: Se2) -> ProbeResult {
+        ProbeResult {
+            node,
+            nodes: PROBE_NODES,
+            map_from_node: map_from_mission.compose(&own[node]),
+            map_from_mission,
+            fit: 0.9,
+            coverage: 0.9,
+            second_peak_ratio: 0.5,
+            usable: true,
+            agrees: false,
+            coarse_evaluations: 0,
+        }
+    }
+
+    #[test]
+    fn agreeing_sets_come_largest_first_without_their_subsets() {
+        let own: Vec<Se2> = (0..6)
+            .map(|k| Se2::new(10.0 * k as f64, 0.0, 0.0))
+            .collect();
+        let (right, wrong, lone) = (
+            Se2::new(0.0, 0.0, 0.0),
+            Se2::new(3.0, 1.0, 0.05),
+            Se2::new(-20.0, 5.0, 0.0),
+        );
+        // Probes 1, 3 and 5 agree on `right`, 0 and 2 on `wrong`, 4 alone.
+        let mut results: Vec<ProbeResult> = [wrong, right, wrong, right, lone, right]
+            .iter()
+            .enumerate()
+            .map(|(k, t)| probe(k, &own, *t))
+            .collect();
+        assert_eq!(
+            agreeing_sets(&results, &own),
+            [vec![1, 3, 5], vec![0, 2], vec![4]]
+        );
+        // Equal sizes: the lowest seed's set first; an unusable probe is
+        // in no set.
+        results[5].usable = false;
+        assert_eq!(
+            agreeing_sets(&results, &own),
+            [vec![0, 2], vec![1, 3], vec![4]]
+        );
+    }
 
     #[test]
     fn the_climb_finds_the_peak_of_a_smooth_bowl() {
