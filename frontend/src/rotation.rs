@@ -75,8 +75,9 @@ pub struct RotationConfig {
     /// this far from the last node, in metres of translation plus the
     /// heading change times half the beams' reach (keyframe selection:
     /// `crate::nodes::spacing`); the others are dropped. 0 makes every
-    /// rotation a node. Default 0; slow or long missions set about 2 m
-    /// (`echofield bench-long` uses `--node-spacing-m`).
+    /// rotation a node. Default 2 m: a vehicle at survey speed moves more
+    /// than that per rotation and keeps every one, a slow or hovering one
+    /// does not add a node per rotation (EXPERIMENTS.md § Long missions).
     pub node_spacing_m: f64,
 }
 
@@ -87,7 +88,7 @@ impl Default for RotationConfig {
             beam_period_s: None,
             keep_partial: false,
             min_partial_coverage_rad: PI,
-            node_spacing_m: 0.0,
+            node_spacing_m: 2.0,
         }
     }
 }

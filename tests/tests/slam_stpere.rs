@@ -32,7 +32,13 @@ fn st_pere_replay_is_within_a_metre_of_dgps() {
         skipped.iter().all(|s| s.start_s < navigation_start_s),
         "{skipped:?}"
     );
-    assert_eq!(report.nodes + skipped.len(), report.rotations);
+    // The default node spacing drops the odd rotation where the vehicle
+    // hardly moved or turned.
+    assert_eq!(
+        report.nodes + skipped.len() + report.thinned_rotations,
+        report.rotations
+    );
+    assert!(report.thinned_rotations <= report.rotations / 20);
     assert!(report.warnings.iter().any(|w| w.contains("skipped")));
     // The MTi's yaw rate reads 6% more than its heading changes and
     // 0.66°/s off: the yaw-rate check measures 0.040 rad/s where 0.01 is

@@ -61,7 +61,14 @@ fn calibrated_real_st_pere_beats_dead_reckoning_against_dgps_and_is_healthy() {
         "ATE {ate:.3} m, dead reckoning {dr:.3} m, {} nodes",
         report.nodes
     );
-    assert!(report.nodes >= 100, "{}", report.nodes);
+    // Rotations 13-115 are navigated; the default node spacing drops the
+    // few where the vehicle hardly moved or turned.
+    assert!(
+        report.nodes >= 95 && report.thinned_rotations <= 5,
+        "{} nodes, {} rotations thinned",
+        report.nodes,
+        report.thinned_rotations
+    );
     assert!(ate < 0.8 * dr, "ATE {ate} m, dead reckoning {dr} m");
     assert!(ate <= 1.0, "ATE {ate} m");
     assert_eq!(report.health.verdict, Verdict::Ok, "{:?}", report.health);

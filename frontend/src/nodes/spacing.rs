@@ -19,7 +19,8 @@
 //! keeps correcting a dead reckoning that may be wrong about it.
 //!
 //! The rule is causal (the pose of each rotation and the past ones only),
-//! the same online and in batch. A node spacing of 0 keeps every rotation.
+//! the same online and in batch. A node spacing of 0 keeps every rotation;
+//! the default is 2 m.
 //! Thinned rotations are counted in the report, not listed: their beams are
 //! dropped.
 

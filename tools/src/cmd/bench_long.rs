@@ -26,7 +26,8 @@ The simulated marina is surveyed along the same route at each cruise speed
 ([vehicle] cruise_speed_mps of the simulator), so slower missions see the
 same quays with more rotations. The runs sparsify loops with
 --cover-spacing-m (loops.cover_spacing_m, default 2 m here, 0 in `run`)
-and nodes with --node-spacing-m (rotation.node_spacing_m, likewise).
+and nodes with --node-spacing-m (rotation.node_spacing_m, 2 m here and
+in `run`).
 Each mission is written to OUTPUT as
 marina-<speed>.mcap and run by `echofield run`'s pipeline in a child
 process (outputs in OUTPUT/run-<speed>), whose peak resident memory
