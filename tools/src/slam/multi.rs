@@ -466,7 +466,7 @@ fn placement_warnings(
     }
     if let (Some(k), Some(n)) = (placement.alternative, placement.confirming_loops) {
         warnings.push(warn(format!(
-            "{name}: the largest set of agreeing probes ({} of {}) gave {}; the placement of a smaller agreeing set (alternative {}) is confirmed by {n} cross-mission loops and taken",
+            "{name}: the largest set of agreeing probes ({} of {}) gave {}; the placement of a smaller agreeing set (report.json placement.alternative = {}) is confirmed by {n} cross-mission loops and taken",
             placement.agreeing,
             placement.probes.len(),
             if placement.agreeing >= placement::MIN_AGREEING {
@@ -474,7 +474,7 @@ fn placement_warnings(
             } else {
                 "no placement"
             },
-            k + 1
+            k
         )));
     }
     if placement.map_from_mission.is_none() {
