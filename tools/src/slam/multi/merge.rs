@@ -134,11 +134,7 @@ pub fn merge(
 ) -> Result<Merged> {
     let mut joint = Joint::of(runs, placements, order)?;
     let candidates = cross_candidates(&joint.members, &joint.placed_poses, &joint.nodes, config);
-    let records: Vec<LoopRecord> = candidates
-        .par_iter()
-        .map(|c| examine(c, c.to, &joint.nodes, &config.matcher, &config.loops))
-        .collect::<Result<_, _>>()
-        .context("cross-mission loop matches")?;
+    let records = joint.examine(&candidates, config)?;
     let mut cross_loops: Vec<MergedLoop> = records
         .into_iter()
         .map(|record| joint.judge(record))
@@ -201,11 +197,7 @@ pub fn confirming_loops(
             .into_iter()
             .filter(|c| c.to >= first)
             .collect();
-    let records: Vec<LoopRecord> = candidates
-        .par_iter()
-        .map(|c| examine(c, c.to, &joint.nodes, &config.matcher, &config.loops))
-        .collect::<Result<_, _>>()
-        .context("cross-mission loop matches")?;
+    let records = joint.examine(&candidates, config)?;
     Ok(records
         .into_iter()
         .filter(|r| joint.judge(r.clone()).record.accepted)
@@ -256,6 +248,16 @@ impl Joint {
                 .extend((0..run.nodes.len()).map(|k| (m, k)));
         }
         Ok(joint)
+    }
+
+    /// The records of `candidates` (joint ids), matched and checked in
+    /// parallel, in their order. Errors: a failed match.
+    fn examine(&self, candidates: &[Candidate], config: &SlamConfig) -> Result<Vec<LoopRecord>> {
+        candidates
+            .par_iter()
+            .map(|c| examine(c, c.to, &self.nodes, &config.matcher, &config.loops))
+            .collect::<Result<_, _>>()
+            .context("cross-mission loop matches")
     }
 
     /// A cross-mission record that passed the loop checks is accepted when
