@@ -76,7 +76,7 @@ const PEAK_SEPARATION_M: f64 = 4.0;
 pub const MIN_AGREEING: usize = 3;
 /// Other agreeing sets (of at least two probes) kept as alternative
 /// placements, at most: tried, in order, only when the placement is
-/// confirmed by no cross-mission loop (see `super::merge`).
+/// confirmed by no cross-mission loop (`confirm_placement` in `super`).
 pub const MAX_ALTERNATIVES: usize = 4;
 /// Agreement of two probes: each one's `map_from_mission` puts the other
 /// probe's middle node within these of where that probe found it.
