@@ -43,6 +43,7 @@ use crate::slam::result::OutliersReport;
 use crate::slam::{ProgressSink, SlamConfig, SlamOutput, run_mission};
 use anyhow::{Context, Result};
 use echofield_backend::SolveSummary;
+use echofield_frontend::loops::records::LoopRecord;
 use echofield_frontend::sensors::Mission;
 use echofield_graph::Se2;
 use merge::{Merged, merge};
@@ -282,22 +283,25 @@ pub fn combine_with_fixes(
     if let Some(&anchor) = order.first() {
         transforms[anchor] = Some(Se2::identity());
     }
+    // The cross-mission matches each placement was confirmed with, which
+    // the merge takes instead of matching them again.
+    let mut examined = Vec::new();
     for position in 1..order.len() {
         let m = order[position];
         let mut placement = place_on_earlier(&runs, fixes, &order[..position], &transforms, m)?;
-        confirm_placement(
+        examined.extend(confirm_placement(
             &runs,
             &order[..=position],
             &transforms,
             &mut placement,
             config,
-        )?;
+        )?);
         warnings.extend(placement_warnings(&runs[m], m, &placement, fixes.get(m)));
         transforms[m] = placement.map_from_mission;
         placements[m] = Some(placement);
     }
     let merged = if order.iter().skip(1).any(|&m| transforms[m].is_some()) {
-        let merged = merge(&runs, &transforms, &order, config)?;
+        let merged = merge(&runs, &transforms, &order, config, &examined)?;
         if merged.accepted_cross() == 0 {
             warnings.push(warn(
                 "the missions were placed but no cross-mission loop was accepted: the merged graph rests on the placement alone".to_string(),
@@ -350,42 +354,47 @@ pub const ALTERNATIVE_MIN_LOOPS: usize = 5;
 /// stands. Otherwise (none, or not placed) the alternatives of smaller
 /// agreeing sets are tried in order, and the first with the most loops,
 /// at least [`ALTERNATIVE_MIN_LOOPS`], becomes the placement; with none
-/// the placement stays as it was. Errors: a failed match.
+/// the placement stays as it was. Returns the cross-mission matches of
+/// the placement kept (none when not placed), for the merge. Errors: a
+/// failed match.
 fn confirm_placement(
     runs: &[SlamOutput],
     order: &[usize],
     transforms: &[Option<Se2>],
     placement: &mut Placement,
     config: &SlamConfig,
-) -> Result<()> {
+) -> Result<Vec<LoopRecord>> {
     let Some(&m) = order.last() else {
-        return Ok(());
+        return Ok(Vec::new());
     };
     let mut trial = transforms.to_vec();
     let mut loops_at = |t: Se2| {
         trial[m] = Some(t);
         merge::confirming_loops(runs, &trial, order, config)
     };
+    let mut kept = Vec::new();
     if let Some(t) = placement.map_from_mission {
-        let n = loops_at(t)?;
+        let (n, records) = loops_at(t)?;
         placement.confirming_loops = Some(n);
         if n > 0 {
-            return Ok(());
+            return Ok(records);
         }
+        kept = records;
     }
-    let mut best: Option<(usize, usize)> = None;
+    let mut best: Option<(usize, usize, Vec<LoopRecord>)> = None;
     for (k, &t) in placement.alternatives.iter().enumerate() {
-        let n = loops_at(t)?;
-        if n >= ALTERNATIVE_MIN_LOOPS && best.is_none_or(|(_, b)| n > b) {
-            best = Some((k, n));
+        let (n, records) = loops_at(t)?;
+        if n >= ALTERNATIVE_MIN_LOOPS && best.as_ref().is_none_or(|(_, b, _)| n > *b) {
+            best = Some((k, n, records));
         }
     }
-    if let Some((k, n)) = best {
+    if let Some((k, n, records)) = best {
         placement.map_from_mission = Some(placement.alternatives[k]);
         placement.confirming_loops = Some(n);
         placement.alternative = Some(k);
+        kept = records;
     }
-    Ok(())
+    Ok(kept)
 }
 
 /// Logs `message` as a warning and returns it for the report.

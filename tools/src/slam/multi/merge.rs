@@ -41,7 +41,7 @@ use echofield_graph::se2::wrap_angle;
 use echofield_graph::{Edge, EdgeKind, PoseGraph, Se2};
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
-use std::collections::HashSet;
+use std::collections::{HashMap, HashSet};
 
 /// Nodes of earlier missions each node of a later mission is matched
 /// against, at most.
@@ -125,16 +125,19 @@ fn node_data(run: &SlamOutput) -> Vec<NodeData> {
 /// into one graph and solves it (see the module doc), taking them in
 /// `order` (input indices; the first, the anchor, must be placed at the
 /// identity): node ids, candidates and the solve follow `order`, not the
-/// input order. Errors: a failed match or solve.
+/// input order. `examined`: records [`confirming_loops`] already matched
+/// at these placements, taken instead of matching their candidates again
+/// (any other candidate is matched here). Errors: a failed match or solve.
 pub fn merge(
     runs: &[SlamOutput],
     placements: &[Option<Se2>],
     order: &[usize],
     config: &SlamConfig,
+    examined: &[LoopRecord],
 ) -> Result<Merged> {
     let mut joint = Joint::of(runs, placements, order)?;
     let candidates = cross_candidates(&joint.members, &joint.placed_poses, &joint.nodes, config);
-    let records = joint.examine(&candidates, config)?;
+    let records = joint.examine(&candidates, examined, config)?;
     let mut cross_loops: Vec<MergedLoop> = records
         .into_iter()
         .map(|record| joint.judge(record))
@@ -177,31 +180,35 @@ pub fn merge(
 /// The cross-mission loops that would be accepted for mission `m`, the
 /// last of `order` (input indices, the anchor first), at its placement
 /// in `placements`: its candidates against the earlier placed missions,
-/// matched and judged as [`merge`] does, before any solve. 0 when fewer
-/// than two of `order` are placed. Errors: a failed match.
+/// matched and judged as [`merge`] does, before any solve; with the
+/// matched records, under the joint ids [`merge`] gives the same
+/// missions (a later mission's ids come after), for it to reuse. 0 and
+/// none when fewer than two of `order` are placed. Errors: a failed
+/// match.
 pub fn confirming_loops(
     runs: &[SlamOutput],
     placements: &[Option<Se2>],
     order: &[usize],
     config: &SlamConfig,
-) -> Result<usize> {
+) -> Result<(usize, Vec<LoopRecord>)> {
     let joint = Joint::of(runs, placements, order)?;
     let Some(&(last, first)) = joint.members.last() else {
-        return Ok(0);
+        return Ok((0, Vec::new()));
     };
     if joint.members.len() < 2 || order.last() != Some(&last) {
-        return Ok(0);
+        return Ok((0, Vec::new()));
     }
     let candidates: Vec<Candidate> =
         cross_candidates(&joint.members, &joint.placed_poses, &joint.nodes, config)
             .into_iter()
             .filter(|c| c.to >= first)
             .collect();
-    let records = joint.examine(&candidates, config)?;
-    Ok(records
-        .into_iter()
-        .filter(|r| joint.judge(r.clone()).record.accepted)
-        .count())
+    let records = joint.examine(&candidates, &[], config)?;
+    let accepted = records
+        .iter()
+        .filter(|r| joint.judge((*r).clone()).record.accepted)
+        .count();
+    Ok((accepted, records))
 }
 
 /// The placed missions joined, before any cross-mission loop: one graph,
@@ -250,12 +257,23 @@ impl Joint {
         Ok(joint)
     }
 
-    /// The records of `candidates` (joint ids), matched and checked in
-    /// parallel, in their order. Errors: a failed match.
-    fn examine(&self, candidates: &[Candidate], config: &SlamConfig) -> Result<Vec<LoopRecord>> {
+    /// The records of `candidates` (joint ids), in their order: the one of
+    /// `examined` with the same pair, else matched and checked here (in
+    /// parallel). Errors: a failed match.
+    fn examine(
+        &self,
+        candidates: &[Candidate],
+        examined: &[LoopRecord],
+        config: &SlamConfig,
+    ) -> Result<Vec<LoopRecord>> {
+        let done: HashMap<(u64, u64), &LoopRecord> =
+            examined.iter().map(|r| ((r.from, r.to), r)).collect();
         candidates
             .par_iter()
-            .map(|c| examine(c, c.to, &self.nodes, &config.matcher, &config.loops))
+            .map(|c| match done.get(&(c.from as u64, c.to as u64)) {
+                Some(record) => Ok((*record).clone()),
+                None => examine(c, c.to, &self.nodes, &config.matcher, &config.loops),
+            })
             .collect::<Result<_, _>>()
             .context("cross-mission loop matches")
     }
