@@ -19,8 +19,8 @@
 //! keeps correcting a dead reckoning that may be wrong about it.
 //!
 //! The rule is causal (the pose of each rotation and the past ones only),
-//! the same online and in batch. A node spacing of 0 keeps every rotation;
-//! the default is 2 m.
+//! the same online and in batch. A node spacing of 0 keeps every rotation
+//! (the default is `RotationConfig::node_spacing_m`'s).
 //! Thinned rotations are counted in the report, not listed: their beams are
 //! dropped.
 
@@ -28,8 +28,8 @@ use echofield_graph::Se2;
 use echofield_graph::se2::wrap_angle;
 
 /// Rotations thinned in a row before the next one is a node whatever its
-/// motion: about a minute of a MiniKing or a Ping360 at its usual 10-15 s
-/// per turn.
+/// motion: it bounds, in rotations, how long the sonar leaves a dead
+/// reckoning that sees the vehicle standing still uncorrected.
 pub const MAX_THINNED_IN_A_ROW: usize = 4;
 
 /// The keyframe rule of the module doc, fed one rotation at a time.
