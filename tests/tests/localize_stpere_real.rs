@@ -16,6 +16,7 @@ use echofield::calibration::{CalibrateSettings, calibrate_mission};
 use echofield::eval::align_se2;
 use echofield::localize::{build_report, localize};
 use echofield::matching::ground_truth_at;
+use echofield::slam::health::Verdict;
 use echofield::slam::{NoProgress, SlamConfig, run_mission};
 use echofield_frontend::localization::{LocalizationConfig, LocalizationState};
 use echofield_frontend::sensors::SweepTiming;
@@ -37,6 +38,10 @@ fn the_second_half_of_real_st_pere_localises_on_the_first_halfs_map() {
 
     // The map: the SLAM run of rotations 1-60 at its optimised poses.
     let run = run_mission(&first, &config, &NoProgress).unwrap();
+    // A good run of its own (issue 34 item 5: no false alarm on a
+    // shorter real mission with fewer revisits).
+    let health = &run.report.health;
+    assert_eq!(health.verdict, Verdict::Ok, "{health:#?}");
     let dgps_nodes = run
         .nodes
         .iter()

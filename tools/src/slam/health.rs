@@ -325,12 +325,38 @@ mod tests {
             accepted_share: Some(0.0),
         };
         assert!(checks_failed(evidence).is_empty());
+        // A loop share just under its limit from few candidates is chance
+        // (34 of 143: the upper end of its interval is 0.32); far under
+        // it (15 of 143), or under it from many candidates, a failure.
+        let loops = |matched: usize, accepted: usize| {
+            let mut evidence = agreeing();
+            evidence.loops = LoopEvidence {
+                matched,
+                accepted,
+                accepted_share: Some(accepted as f64 / matched as f64),
+            };
+            checks_failed(evidence)
+        };
+        assert!(loops(143, 34).is_empty());
+        assert_eq!(loops(143, 15), [Check::LoopAcceptance]);
+        assert_eq!(loops(4000, 800), [Check::LoopAcceptance]);
         // Too few sequential pairs: none of their checks.
         let mut evidence = agreeing();
         evidence.sequential.matched = checks::MIN_PAIRS - 1;
         evidence.sequential.accepted_share = Some(0.0);
         evidence.sequential.median_chi2 = Some(100.0);
         assert!(checks_failed(evidence).is_empty());
+    }
+
+    #[test]
+    fn the_share_bound_is_the_wilson_score_interval() {
+        // p = 0.5, n = 100, z = 2: (0.52 + 2·√0.0026) / 1.04.
+        let expected = (0.52 + 2.0 * 0.0026_f64.sqrt()) / 1.04;
+        assert!((checks::share_upper_bound(0.5, 100, 2.0) - expected).abs() < 1e-12);
+        // None accepted of 4: (0.5 + 2·√(1/16)) / 2.
+        assert!((checks::share_upper_bound(0.0, 4, 2.0) - 0.5).abs() < 1e-12);
+        assert_eq!(checks::share_upper_bound(1.0, 10, 2.0), 1.0);
+        assert_eq!(checks::share_upper_bound(0.0, 0, 2.0), 1.0);
     }
 
     #[test]

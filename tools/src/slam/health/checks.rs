@@ -33,7 +33,12 @@
 //!   accepts a good share of the candidates it matches. No model gives
 //!   these two shares: their limits are round figures set between the
 //!   runs that agree and the runs with a wrong mounting, with the margins
-//!   on both sides in the README.
+//!   on both sides in the README. A share fails only when the evidence
+//!   puts it below its limit: when the upper end of its Wilson score
+//!   interval ([`share_upper_bound`], `z` = [`SHARE_Z`]) lies below the
+//!   limit, so that a short mission's few candidates, accepted at a share
+//!   just under the limit by chance, are not called suspect for it (as
+//!   the head offset counts only three standard errors from zero).
 //! - **Map sharpening**: the map of placed scans must not be less sharp
 //!   under the optimised trajectory than under dead reckoning, by more than
 //!   [`MAX_ENTROPY_INCREASE_BITS`]: the optimisation exists to bring the
@@ -60,6 +65,9 @@ pub const MIN_SEQUENTIAL_SHARE: f64 = 0.75;
 pub const MIN_LOOP_SHARE: f64 = 0.25;
 pub const MIN_LOOP_MATCHES: usize = 20;
 pub const MIN_SCAN_SHARE: f64 = 0.5;
+/// Standard normal quantile of the acceptance shares' one-sided bound
+/// (97.7 %): two standard errors.
+pub const SHARE_Z: f64 = 2.0;
 pub const MAX_ENTROPY_INCREASE_BITS: f64 = 0.1;
 
 fn reason(check: Check, figure: f64, limit: f64, message: String) -> HealthReason {
@@ -163,10 +171,29 @@ fn translation(fit: &TranslationFit) -> Vec<HealthReason> {
     out
 }
 
+/// The upper end of the Wilson score interval of a binomial share
+/// `share` observed over `n` trials, `z` standard errors (one-sided).
+/// Preconditions: `share` in [0, 1]; `n > 0` (1 for `n = 0`: no evidence).
+pub fn share_upper_bound(share: f64, n: usize, z: f64) -> f64 {
+    if n == 0 {
+        return 1.0;
+    }
+    let n = n as f64;
+    let z2n = z * z / n;
+    let centre = share + 0.5 * z2n;
+    let spread = z * (share * (1.0 - share) / n + 0.25 * z2n / n).sqrt();
+    ((centre + spread) / (1.0 + z2n)).min(1.0)
+}
+
+/// `share` of `n` lies below `limit` beyond its chance ([`SHARE_Z`]).
+fn clearly_below(share: f64, n: usize, limit: f64) -> bool {
+    share_upper_bound(share, n, SHARE_Z) < limit
+}
+
 fn acceptance(evidence: &SequentialEvidence) -> Option<HealthReason> {
     let share = evidence
         .accepted_share
-        .filter(|&s| s < MIN_SEQUENTIAL_SHARE)?;
+        .filter(|&s| clearly_below(s, evidence.attempted, MIN_SEQUENTIAL_SHARE))?;
     let reasons: Vec<String> = evidence
         .rejected_by
         .iter()
@@ -198,7 +225,9 @@ pub fn loops(evidence: &LoopEvidence) -> Option<HealthReason> {
     if evidence.matched < MIN_LOOP_MATCHES {
         return None;
     }
-    let share = evidence.accepted_share.filter(|&s| s < MIN_LOOP_SHARE)?;
+    let share = evidence
+        .accepted_share
+        .filter(|&s| clearly_below(s, evidence.matched, MIN_LOOP_SHARE))?;
     Some(reason(
         Check::LoopAcceptance,
         share,
