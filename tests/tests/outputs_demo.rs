@@ -84,6 +84,27 @@ fn demo_simulates_runs_and_writes_every_output() {
             "{number} in {loops}"
         );
     }
+    // With the tolerances and the accepted loops' median error against
+    // the ground truth, taken here from loops.csv.
+    let csv = std::fs::read_to_string(out.join("loops.csv")).unwrap();
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let column = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let (accepted, error) = (column("accepted"), column("gt_error_m"));
+    let mut errors: Vec<f64> = lines
+        .map(|l| l.split(',').collect::<Vec<_>>())
+        .filter(|f| f[accepted] == "true" && !f[error].is_empty())
+        .map(|f| f[error].parse().unwrap())
+        .collect();
+    assert!(!errors.is_empty());
+    errors.sort_by(f64::total_cmp);
+    let n = errors.len();
+    let median = 0.5 * (errors[(n - 1) / 2] + errors[n / 2]);
+    assert!(
+        loops.contains("within 0.5 m and 3°")
+            && loops.contains(&format!("median error {median:.2} m")),
+        "{median} in {loops}"
+    );
     // And the DVL scale check, as the inverse of the report's scale.
     let scale = report.dead_reckoning.odometry_scale.unwrap().scale;
     let excess = 1.0 / scale - 1.0;

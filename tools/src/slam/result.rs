@@ -188,6 +188,19 @@ pub struct LoopEvaluation {
     /// Accepted loops within the tolerances / not.
     pub true_positives: usize,
     pub false_positives: usize,
+    /// The true-positive tolerances: metres and degrees
+    /// (`[evaluation] true_positive_translation_m`, `..._rotation_deg`).
+    pub tolerance_m: f64,
+    pub tolerance_deg: f64,
+    /// Median over the accepted loops of the measurement's error against
+    /// the ground-truth relative pose: translation, metres, and heading,
+    /// degrees (`None` without an accepted loop that the ground truth
+    /// covers). Beside the precision, which counts the errors beyond the
+    /// tolerances, it says by how much: against a reference whose own
+    /// error is near the tolerance (a GPS fix and a compass heading) the
+    /// precision counts the reference's error as much as the loops'.
+    pub accepted_median_error_m: Option<f64>,
+    pub accepted_median_error_deg: Option<f64>,
     /// Revisit nodes (see `definitions`) and those recognised.
     pub recall_nodes: usize,
     pub recalled_nodes: usize,
@@ -439,9 +452,15 @@ impl Report {
     /// recall budget's gate ceiling. `None` without ground truth.
     pub fn loop_summary(&self) -> Option<String> {
         let (precision, recall) = (self.loop_precision?, self.loop_recall?);
-        let mut line = format!(
-            "loop closures: precision {precision:.3}, recall {recall:.3} of the overlapping node pairs"
-        );
+        let mut line = format!("loop closures: precision {precision:.3}");
+        if let Some(e) = &self.loop_evaluation {
+            line += &format!(" (within {} m and {}°", e.tolerance_m, e.tolerance_deg);
+            if let (Some(m), Some(deg)) = (e.accepted_median_error_m, e.accepted_median_error_deg) {
+                line += &format!("; accepted loops' median error {m:.2} m, {deg:.1}°");
+            }
+            line += ")";
+        }
+        line += &format!(", recall {recall:.3} of the overlapping node pairs");
         if let Some(revisits) = self.loop_recall_revisits {
             line += &format!(", {revisits:.3} of the revisits");
         }
