@@ -6,7 +6,10 @@
 //! thin and pale, in a fixed colour per check that rejected them. Rejected
 //! ones are drawn first, then the accepted true ones, and the accepted
 //! false ones last and wider, so that a few false loops among hundreds of
-//! true ones stay visible. The legend counts each class.
+//! true ones stay visible. The legend counts each class and, when the
+//! tolerances of the verdict are given, names them: against a reference
+//! whose own error is near them (GPS fixes and a compass), "false" is the
+//! reference's verdict as much as the loop's.
 
 use super::trajectory::OPTIMISED;
 use super::{
@@ -64,9 +67,12 @@ pub struct LoopSegment {
 }
 
 /// Draws the trajectory and the candidates as a PNG of `size_px`.
+/// `tolerance`: the true-positive tolerances (metres, degrees) the
+/// verdicts of [`LoopClass::Accepted`] were judged with, for the legend.
 pub fn loops_png(
     trajectory: &[(f64, f64)],
     loops: &[LoopSegment],
+    tolerance: Option<(f64, f64)>,
     caption: &str,
     size_px: (u32, u32),
 ) -> Result<Vec<u8>> {
@@ -108,7 +114,7 @@ pub fn loops_png(
                 .label(format!("rejected: {check} ({})", segments.len()))
                 .legend(legend_line(colour));
         }
-        draw_accepted(&mut chart, &accepted)?;
+        draw_accepted(&mut chart, &accepted, tolerance)?;
         draw_legend(&mut chart, corner)?;
         Ok(())
     })
@@ -135,12 +141,12 @@ fn by_class(loops: &[LoopSegment]) -> (BTreeMap<&str, Vec<&LoopSegment>>, [Vec<&
 
 /// The accepted candidates of [`by_class`], each class (not empty) with its
 /// legend entry.
-fn draw_accepted(chart: &mut MapChart, accepted: &[Vec<&LoopSegment>; 3]) -> Result<()> {
-    let names = [
-        "accepted (no ground truth)",
-        "accepted, true",
-        "accepted, false",
-    ];
+fn draw_accepted(
+    chart: &mut MapChart,
+    accepted: &[Vec<&LoopSegment>; 3],
+    tolerance: Option<(f64, f64)>,
+) -> Result<()> {
+    let names = accepted_names(tolerance);
     let colours = [ACCEPTED_UNKNOWN, ACCEPTED_TRUE, ACCEPTED_FALSE];
     let widths = [2, 2, 3];
     for (((segments, name), colour), width) in accepted.iter().zip(names).zip(colours).zip(widths) {
@@ -152,6 +158,19 @@ fn draw_accepted(chart: &mut MapChart, accepted: &[Vec<&LoopSegment>; 3]) -> Res
             .legend(legend_line(colour));
     }
     Ok(())
+}
+
+/// The legend names of the accepted classes (no ground truth, true,
+/// false), with the tolerances when known.
+fn accepted_names(tolerance: Option<(f64, f64)>) -> [String; 3] {
+    let (t, f) = match tolerance {
+        Some((m, deg)) => (
+            format!("accepted, within {m} m and {deg}° of ground truth"),
+            format!("accepted, farther than {m} m or {deg}° from it"),
+        ),
+        None => ("accepted, true".into(), "accepted, false".into()),
+    };
+    ["accepted (no ground truth)".into(), t, f]
 }
 
 fn draw_segments<'c, 'a, 'b>(
@@ -192,7 +211,7 @@ mod tests {
                 class: LoopClass::Rejected("quality".into()),
             },
         ];
-        let png = loops_png(&trajectory, &loops, "loops", (500, 400)).unwrap();
+        let png = loops_png(&trajectory, &loops, None, "loops", (500, 400)).unwrap();
         let rgb = image::load_from_memory(&png).unwrap().to_rgb8();
         assert_eq!(rgb.dimensions(), (500, 400));
         for c in [ACCEPTED_TRUE, ACCEPTED_FALSE] {
@@ -205,6 +224,15 @@ mod tests {
             !rgb.pixels()
                 .any(|p| p.0 == [ACCEPTED_UNKNOWN.0, ACCEPTED_UNKNOWN.1, ACCEPTED_UNKNOWN.2])
         );
+    }
+
+    #[test]
+    fn the_legend_names_the_tolerances_of_the_verdict() {
+        let [none, t, f] = accepted_names(Some((0.5, 3.0)));
+        assert_eq!(none, "accepted (no ground truth)");
+        assert_eq!(t, "accepted, within 0.5 m and 3° of ground truth");
+        assert_eq!(f, "accepted, farther than 0.5 m or 3° from it");
+        assert_eq!(accepted_names(None)[1], "accepted, true");
     }
 
     /// A false loop under many true ones that cover it stays visible: the
@@ -224,7 +252,7 @@ mod tests {
                 class: LoopClass::Accepted(Some(true)),
             });
         }
-        let png = loops_png(&trajectory, &loops, "loops", (500, 400)).unwrap();
+        let png = loops_png(&trajectory, &loops, None, "loops", (500, 400)).unwrap();
         let rgb = image::load_from_memory(&png).unwrap().to_rgb8();
         let red = [ACCEPTED_FALSE.0, ACCEPTED_FALSE.1, ACCEPTED_FALSE.2];
         // More red than the legend's short sample line alone could give.

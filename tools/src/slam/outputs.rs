@@ -237,9 +237,12 @@ fn write_plots(
         )?;
     }
     let optimised: Vec<Se2> = output.nodes.iter().map(|n| n.optimised).collect();
+    let tolerance =
+        (output.report.loop_evaluation.as_ref()).map(|e| (e.tolerance_m, e.tolerance_deg));
     let png = loops_png(
         &positions(optimised.iter().copied()),
         &loop_segments(loops, &optimised),
+        tolerance,
         &format!("{}: loop closures", output.mission_name),
         PLOT_SIZE_PX,
     )?;
