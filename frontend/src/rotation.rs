@@ -75,9 +75,9 @@ pub struct RotationConfig {
     /// this far from the last node, in metres of translation plus the
     /// heading change times half the beams' reach (keyframe selection:
     /// `crate::nodes::spacing`); the others are dropped. 0 makes every
-    /// rotation a node. Default 2 m: a vehicle at survey speed moves more
-    /// than that per rotation and keeps every one, a slow or hovering one
-    /// does not add a node per rotation (EXPERIMENTS.md § Long missions).
+    /// rotation a node. Default 2 m (why, and what it drops on the
+    /// benchmark missions: EXPERIMENTS.md § Long missions, "The node
+    /// spacing as `run`'s default").
     pub node_spacing_m: f64,
 }
 

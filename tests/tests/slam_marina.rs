@@ -282,12 +282,12 @@ fn marina_mission_is_five_times_better_than_dead_reckoning() {
     );
 }
 
-/// `[rotation] node_spacing_m` (keyframe selection) on the marina, whose
-/// vehicle covers about 5 m per rotation: a 6 m spacing drops about a
-/// fifth of the rotations, each node is as far from the last as the rule
-/// asks (or the rule's cap forced it), and the thinned run keeps the
-/// accuracy of the full one (0.2% of the distance, at least 5x better than
-/// dead reckoning).
+/// `[rotation] node_spacing_m` (keyframe selection) on the marina, with a
+/// spacing a little above the vehicle's travel per rotation: it drops at
+/// least a tenth and at most half of the rotations, each node is as far
+/// from the last as the rule asks (or the rule's cap forced it), and the
+/// thinned run keeps the accuracy bounds of the full one (ATE at most 0.2%
+/// of the distance and a fifth of the dead reckoning's).
 #[test]
 fn a_node_spacing_thins_the_rotations_and_keeps_the_accuracy() {
     use echofield_frontend::nodes::spacing::MAX_THINNED_IN_A_ROW;

@@ -86,12 +86,15 @@ impl NodeSpacing {
 mod tests {
     use super::*;
 
-    /// `keep` over poses `(x, y, θ)` with a 40 m reach.
+    /// The beams' reach of these tests, metres.
+    const REACH_M: f64 = 40.0;
+
+    /// `keep` over poses `(x, y, θ)` with beams reaching [`REACH_M`].
     fn kept(spacing_m: f64, poses: &[(f64, f64, f64)]) -> Vec<bool> {
         let mut rule = NodeSpacing::new(spacing_m);
         poses
             .iter()
-            .map(|&(x, y, t)| rule.keep(&Se2::new(x, y, t), 40.0))
+            .map(|&(x, y, t)| rule.keep(&Se2::new(x, y, t), REACH_M))
             .collect()
     }
 
@@ -131,7 +134,7 @@ mod tests {
         assert_eq!(nodes, [0, step, 2 * step]);
         let mut rule = NodeSpacing::new(2.0);
         for _ in 0..11 {
-            rule.keep(&Se2::new(1.0, 2.0, 0.3), 40.0);
+            rule.keep(&Se2::new(1.0, 2.0, 0.3), REACH_M);
         }
         assert_eq!(rule.thinned(), 11 - 3);
     }

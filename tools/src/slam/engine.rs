@@ -287,7 +287,8 @@ impl<'c> SlamEngine<'c> {
     }
 
     /// Drops from `rotations` those that [`NodeSpacing`] does not make
-    /// nodes (their beams go with the next node's build). A rotation the
+    /// nodes (their beams are dropped when the next node is built,
+    /// [`Self::build_nodes`]). A rotation the
     /// navigation does not place is kept, to be skipped and reported.
     fn thin(&mut self, rotations: &mut Vec<Rotation>) {
         if self.config.rotation.node_spacing_m <= 0.0 {

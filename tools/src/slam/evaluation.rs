@@ -57,6 +57,7 @@
 //!   with the same matches.
 
 use super::config::{EvaluationConfig, SlamConfig};
+use super::health::evidence::median;
 use super::node_record::NodeRecord;
 use super::result::{LoopEvaluation, RecallBin, RecallBudget, Report};
 use crate::eval::{Alignment, ate, cumulative_distance, rpe};
@@ -110,19 +111,15 @@ pub fn evaluate(
         (pairs > 0).then(|| (budget.recalled + budget.right_match_rejected) as f64 / pairs as f64);
     report.loop_recall_revisits =
         (recall.nodes > 0).then(|| recall.recalled_nodes as f64 / recall.nodes as f64);
-    let median = |mut v: Vec<f64>| -> Option<f64> {
-        v.sort_by(f64::total_cmp);
-        let n = v.len();
-        (n > 0).then(|| 0.5 * (v[(n - 1) / 2] + v[n / 2]))
-    };
     let accepted = || loops.iter().filter(|r| r.accepted);
+    let median_of = |mut v: Vec<f64>| median(&mut v);
     report.loop_evaluation = Some(LoopEvaluation {
         true_positives: tp,
         false_positives: fp,
         tolerance_m: eval.true_positive_translation_m,
         tolerance_deg: eval.true_positive_rotation_deg,
-        accepted_median_error_m: median(accepted().filter_map(|r| r.gt_error_m).collect()),
-        accepted_median_error_deg: median(accepted().filter_map(|r| r.gt_error_deg).collect()),
+        accepted_median_error_m: median_of(accepted().filter_map(|r| r.gt_error_m).collect()),
+        accepted_median_error_deg: median_of(accepted().filter_map(|r| r.gt_error_deg).collect()),
         recall_nodes: recall.nodes,
         recalled_nodes: recall.recalled_nodes,
         recall_pairs: pairs,

@@ -228,7 +228,9 @@ fn share(part: usize, whole: usize) -> Option<f64> {
     (whole > 0).then(|| part as f64 / whole as f64)
 }
 
-fn median(values: &mut [f64]) -> Option<f64> {
+/// The median of `values` (the mean of the two middle ones for an even
+/// count; `None` when empty); sorts them.
+pub(crate) fn median(values: &mut [f64]) -> Option<f64> {
     if values.is_empty() {
         return None;
     }

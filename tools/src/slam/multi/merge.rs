@@ -206,7 +206,7 @@ pub fn confirming_loops(
     let records = joint.examine(&candidates, &[], config)?;
     let accepted = records
         .iter()
-        .filter(|r| joint.judge((*r).clone()).record.accepted)
+        .filter(|r| r.rejected_by.is_none() && joint.agrees(r))
         .count();
     Ok((accepted, records))
 }
@@ -278,21 +278,26 @@ impl Joint {
             .context("cross-mission loop matches")
     }
 
+    /// Whether `record`'s measurement puts its newer node within
+    /// `CROSS_AGREE_M` and `CROSS_AGREE_RAD` of where the placement put it
+    /// (false without a measurement).
+    fn agrees(&self, record: &LoopRecord) -> bool {
+        let Some(z) = record.measurement else {
+            return false;
+        };
+        let measured = self.placed_poses[record.from as usize].compose(&z);
+        let placed = self.placed_poses[record.to as usize];
+        (measured.x() - placed.x()).hypot(measured.y() - placed.y()) <= CROSS_AGREE_M
+            && wrap_angle(measured.theta() - placed.theta()).abs() <= CROSS_AGREE_RAD
+    }
+
     /// A cross-mission record that passed the loop checks is accepted when
     /// its measurement agrees with the placement (within `CROSS_AGREE_M`
     /// and `CROSS_AGREE_RAD`), else rejected as inconsistent; the record
     /// under mission-local node numbers.
     fn judge(&self, mut record: LoopRecord) -> MergedLoop {
-        if record.rejected_by.is_none()
-            && let Some(z) = record.measurement
-        {
-            let (from, to) = (record.from as usize, record.to as usize);
-            let measured = self.placed_poses[from].compose(&z);
-            let placed = self.placed_poses[to];
-            let agrees = (measured.x() - placed.x()).hypot(measured.y() - placed.y())
-                <= CROSS_AGREE_M
-                && wrap_angle(measured.theta() - placed.theta()).abs() <= CROSS_AGREE_RAD;
-            if agrees {
+        if record.rejected_by.is_none() && record.measurement.is_some() {
+            if self.agrees(&record) {
                 record.accepted = true;
             } else {
                 record.rejected_by = Some(RejectReason::Inconsistent);
