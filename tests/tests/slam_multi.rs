@@ -551,11 +551,16 @@ fn the_merged_folder_holds_the_graph_the_mosaic_and_the_mcap() {
 }
 
 /// The real halves with the head's yaw moved within `calibrate`'s own
-/// uncertainty (±1.6°), every rotation a node: at these yaws the largest
-/// set of agreeing probes places the first half on a wrong fit, which no
+/// uncertainty (±1.6°), every rotation a node: at +0.6° the largest set
+/// of agreeing probes places the first half on a wrong fit, which no
 /// cross-mission loop confirms (without the confirmation, +0.6° is not
 /// merged). A smaller agreeing set's placement that cross-mission loops
-/// confirm is then taken (`Placement::alternative`), and both merge.
+/// confirm is then taken (`Placement::alternative`), and both merge. At
+/// +0.9° the largest set's placement was wrong too until the halves'
+/// loops were weighted by their places (`LoopConfig::shared_place_errors`);
+/// now it stands on the cross-mission loops it gets. Either way a
+/// placement stands only on accepted cross-mission loops, an alternative
+/// one only on at least 5.
 #[test]
 fn the_real_halves_merge_across_the_yaws_calibrate_allows() {
     let mission = stpere_point_set_mission(Some(SweepTiming::AngleIncreasing));
@@ -582,11 +587,16 @@ fn the_real_halves_merge_across_the_yaws_calibrate_allows() {
             report.merged, placement.alternative, report.cross_loops_accepted
         );
         assert!(
-            report.merged && report.cross_loops_accepted >= 5,
+            report.merged && report.cross_loops_accepted >= 1,
             "{:?}",
             report.warnings
         );
-        assert!(placement.alternative.is_some(), "yaw {offset_deg:+}°");
+        if placement.alternative.is_some() {
+            assert!(report.cross_loops_accepted >= 5, "yaw {offset_deg:+}°");
+        }
+        if offset_deg == 0.6 {
+            assert!(placement.alternative.is_some(), "yaw {offset_deg:+}°");
+        }
         assert!(ate <= 1.2, "yaw {offset_deg:+}°: ATE {ate:.3} m");
     }
 }

@@ -51,8 +51,8 @@ fn point_sets_are_detected_and_still_remove_the_drift() {
         report.intensity.derived
     );
     let (ate, dr) = ate_and_dead_reckoning(&report);
-    // Measured (README.md, "Real data"): 0.26 m against 3.09 m of dead reckoning;
-    // the graded beams of the same replay give 0.20 m.
+    // The measured figures, with the graded beams of the same replay for
+    // comparison: EXPERIMENTS.md § Where the loops' excess length comes from.
     assert!(
         ate < 0.45 && ate * 5.0 < dr,
         "ATE {ate} m, dead reckoning {dr} m"

@@ -180,6 +180,25 @@ pub struct LoopConfig {
     /// require) counts every overlapping pair; long or slow missions set
     /// about 2 m (`echofield bench-long` uses `--cover-spacing-m`).
     pub cover_spacing_m: f64,
+    /// Whether the clique's loops (the mission pass's), too, enter the
+    /// final graph with the design effect of their place,
+    /// `1 + ρ·(m_j + m_k − 2)` ([`DENSIFY_CORRELATION`],
+    /// [`places`](crate::loops::places)), as the densified ones always do.
+    /// Thresholded scans make loops that share a place share an error: a
+    /// wall's band is thicker the farther it is seen, so matches between
+    /// two places measure their displacement long by about the same
+    /// amount, which independent loops would pile up into a stretched
+    /// map. Applied from the end of the mission pass (after
+    /// densification, before the final solve); during the pass the
+    /// clique's loops enter as matched, which kept more of the gain
+    /// (EXPERIMENTS.md § The real map's scale).
+    ///
+    /// Not a config key (`#[serde(skip)]`): derived from the data, true
+    /// for binary (scan-only) intensities, false otherwise (the pipeline's
+    /// scan-only preparation in the tools crate; measured: EXPERIMENTS.md
+    /// § The real map's scale).
+    #[serde(skip)]
+    pub shared_place_errors: bool,
 }
 
 impl Default for LoopConfig {
@@ -199,6 +218,7 @@ impl Default for LoopConfig {
             densify_max_sigma: Window::new(0.35, 0.35, 3.0_f64.to_radians()),
             densify_partial: true,
             cover_spacing_m: 0.0,
+            shared_place_errors: false,
         }
     }
 }

@@ -115,16 +115,21 @@ impl Estimate {
     }
 
     /// Makes the accepted loops exactly `accepted` (id, from, to,
-    /// `from_from_to`, covariance, metadata); returns whether anything
-    /// changed. The loop closer passes edges without metadata and attaches
+    /// `from_from_to`, covariance, metadata; ids ascending); returns whether
+    /// anything changed (an id, or the weight of a loop kept). The loop closer passes edges without metadata and attaches
     /// it once, before the final solve ([`Self::attach_loop_metadata`]):
     /// the loops change at nearly every node of a long mission, and making
     /// and dropping every loop's metadata each time grew with the square of
     /// the mission.
     pub fn set_loops(&mut self, accepted: Vec<(usize, Edge, Matrix3<f64>)>) -> bool {
-        let new_ids: Vec<usize> = accepted.iter().map(|(id, _, _)| *id).collect();
-        let old_ids: Vec<usize> = self.loops.keys().copied().collect();
-        if new_ids == old_ids {
+        let unchanged = accepted.len() == self.loops.len()
+            && accepted
+                .iter()
+                .zip(&self.loops)
+                .all(|((id, new, _), (old_id, old))| {
+                    id == old_id && new.information == old.information
+                });
+        if unchanged {
             return false;
         }
         for (_, edge) in std::mem::take(&mut self.loops) {

@@ -255,7 +255,8 @@ pub(crate) fn prepare<'m, 'c>(
 
 /// Scan-only data: [`intensity::prepare_binary`] on the mission's beams and a
 /// copy of the config when the beams' intensities are binary, whose
-/// sequential matches then read a submap ([`SUBMAP_ROTATIONS_SCAN_ONLY`]); the mission
+/// sequential matches then read a submap ([`SUBMAP_ROTATIONS_SCAN_ONLY`]) and whose
+/// loops that share a place share their weight (`LoopConfig::shared_place_errors`); the mission
 /// and the config are borrowed as they are otherwise. The effective config
 /// (`config.toml`) carries what was derived.
 fn prepare_scan_only<'m, 'c>(
@@ -281,6 +282,8 @@ fn prepare_scan_only<'m, 'c>(
     derived.push(format!(
         "sequential matches against a submap of the {SUBMAP_ROTATIONS_SCAN_ONLY} rotations before"
     ));
+    config.loops.shared_place_errors = true;
+    derived.push("loops that share a place weighted by its design effect".to_string());
     let report = IntensityReport { kind, derived };
     (Cow::Owned(mission), Cow::Owned(config), report)
 }

@@ -69,8 +69,10 @@ impl SlamEngine<'_> {
         self.output(graph, summary, final_solve_s, warnings, ground_truth)
     }
 
-    /// Densified loops (straight into the final solve) and the warnings of
-    /// the node-by-node stage.
+    /// Densified loops (straight into the final solve), the clique's loops
+    /// weighed by their places where their errors are shared
+    /// (`LoopConfig::shared_place_errors`), and the warnings of the
+    /// node-by-node stage.
     fn close_graph(&mut self, warnings: &mut Warnings) -> Result<(), SlamError> {
         let graph = &mut self.graph;
         let t = Instant::now();
@@ -85,6 +87,7 @@ impl SlamEngine<'_> {
             &mut graph.incremental_error,
         );
         graph.closer.densify(&graph.nodes, &mut graph.estimate)?;
+        graph.closer.weigh_shared_places(&mut graph.estimate);
         tracing::debug!(
             mission_pass = before,
             densification = rebuilt(&graph.nodes) - before,

@@ -65,7 +65,8 @@ impl LoopCloser<'_> {
     }
 
     /// The loop edges of the accepted set, with their covariances: the
-    /// clique's loops as matched, the densified ones inflated by their
+    /// clique's loops as matched (inflated by their design effect too with
+    /// `shared_place_errors`), the densified ones inflated by their
     /// design effect (`loops::config::DENSIFY_CORRELATION`). Without
     /// metadata: [`Self::attach_metadata`] gives it to the final ones.
     pub(super) fn accepted_edges(&self) -> Vec<(usize, echofield_graph::Edge, Matrix3<f64>)> {
@@ -81,9 +82,19 @@ impl LoopCloser<'_> {
         );
         let rho = DENSIFY_CORRELATION;
         let inflations = self.dense.iter().map(|m| places.design_effect(m, rho));
+        let shared = self.config.shared_place_errors;
         primary
             .into_iter()
-            .map(|m| (m, 1.0))
+            .map(|m| {
+                (
+                    m,
+                    if shared {
+                        places.design_effect(m, rho)
+                    } else {
+                        1.0
+                    },
+                )
+            })
             .chain(self.dense.iter().zip(inflations))
             .filter_map(|(m, inflation)| loop_edge(m, inflation))
             .collect()
@@ -111,14 +122,22 @@ impl LoopCloser<'_> {
     /// Brings the cover and the estimate's loop edges from the loops
     /// `previous` (ids ascending, what the estimate held) to
     /// [`Self::in_estimate`]: by the change alone while no loop is
-    /// densified, else remade whole (densified loops' covariances depend on
-    /// every accepted loop). Returns whether the estimate's loops changed.
+    /// densified, else remade whole (a design effect depends on every
+    /// accepted loop). Returns whether the estimate's loops changed.
     pub(super) fn update_estimate(&mut self, previous: &[usize], estimate: &mut Estimate) -> bool {
         if !self.dense.is_empty() {
             self.refresh_cover();
             return estimate.set_loops(self.accepted_edges());
         }
         self.apply_clique_change(previous, estimate)
+    }
+
+    /// The end of the mission pass: with `shared_place_errors` the
+    /// estimate's loop edges are remade whole, the clique's loops weighted
+    /// by the design effect of their places from now on (until then they
+    /// entered as matched). Returns whether the estimate's loops changed.
+    pub fn weigh_shared_places(&mut self, estimate: &mut Estimate) -> bool {
+        self.config.shared_place_errors && estimate.set_loops(self.accepted_edges())
     }
 
     /// Gives the estimate's loop edges their metadata ([`loop_metadata`]
@@ -225,7 +244,7 @@ pub fn loop_metadata(record: &LoopRecord) -> Option<serde_json::Value> {
 mod tests {
     use super::super::LoopCloser;
     use super::super::fixtures::{closer_on_a_line, measurement};
-    use super::sorted_difference;
+    use super::{DENSIFY_CORRELATION, sorted_difference};
     use crate::slam::config::BackendConfig;
     use crate::slam::estimate::Estimate;
     use echofield_frontend::loops::LoopConfig;
@@ -349,6 +368,77 @@ mod tests {
                 "{ids:?}"
             );
         }
+    }
+
+    /// With `shared_place_errors`, two clique loops between the same two
+    /// nodes enter with their covariance times the design effect
+    /// `1 + ρ·(2 + 2 − 2)` (ρ = `DENSIFY_CORRELATION` = 1: 3), a loop alone
+    /// at its nodes as matched; without it every clique loop enters as
+    /// matched.
+    #[test]
+    fn loops_that_share_a_place_share_their_weight_when_told_to() {
+        let matcher = MatcherConfig::default();
+        let covariance_of = |shared: bool| {
+            let config = LoopConfig {
+                shared_place_errors: shared,
+                ..LoopConfig::default()
+            };
+            let mut closer = closer_on_a_line(&config, &matcher);
+            let chain = closer.chain.clone();
+            // Loops 7 and 9 both join nodes 3 and 25; loop 12 is alone.
+            for (id, from, to) in [(7, 3, 25), (9, 3, 25), (12, 10, 38)] {
+                closer
+                    .consistency
+                    .add(line_loop(id, from, to), &chain, CONSISTENCY_MAX_CHI2);
+            }
+            closer.accepted.ids = vec![7, 9, 12];
+            let mut estimate = line_estimate();
+            assert!(closer.update_estimate(&[], &mut estimate));
+            let as_matched = estimate.graph().unwrap();
+            assert_eq!(closer.weigh_shared_places(&mut estimate), shared);
+            let weighed = estimate.graph().unwrap();
+            // Sorted: the loops' order in the graph is not the point here.
+            let loop_information = |g: &echofield_graph::PoseGraph| -> Vec<f64> {
+                let mut v: Vec<f64> = g
+                    .edges()
+                    .filter(|e| e.kind == EdgeKind::Loop)
+                    .map(|e| e.information[(0, 0)])
+                    .collect();
+                v.sort_by(f64::total_cmp);
+                v
+            };
+            let (before, after) = (loop_information(&as_matched), loop_information(&weighed));
+            assert_eq!(before.len(), 3);
+            // The pass's edges are as matched; the weighed ones lighter where shared.
+            assert!(
+                before.iter().zip(&after).all(|(b, a)| a <= b),
+                "{before:?} {after:?}"
+            );
+            assert_eq!(
+                before.iter().zip(&after).filter(|(b, a)| a < b).count(),
+                if shared { 2 } else { 0 }
+            );
+            let matched = line_loop(0, 3, 25).covariance;
+            closer
+                .accepted_edges()
+                .into_iter()
+                .map(|(id, _, cov)| (id, cov[(0, 0)] / matched[(0, 0)]))
+                .collect::<Vec<_>>()
+        };
+        let ratio = |v: &[(usize, f64)], id: usize| v.iter().find(|(i, _)| *i == id).unwrap().1;
+        assert_eq!(
+            DENSIFY_CORRELATION, 1.0,
+            "the expected factors below assume ρ = 1"
+        );
+        let shared = covariance_of(true);
+        assert!((ratio(&shared, 7) - 3.0).abs() < 1e-12, "{shared:?}");
+        assert!((ratio(&shared, 9) - 3.0).abs() < 1e-12, "{shared:?}");
+        assert!((ratio(&shared, 12) - 1.0).abs() < 1e-12, "{shared:?}");
+        let independent = covariance_of(false);
+        assert!(
+            independent.iter().all(|(_, r)| (r - 1.0).abs() < 1e-12),
+            "{independent:?}"
+        );
     }
 
     #[test]
