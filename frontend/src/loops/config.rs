@@ -184,19 +184,20 @@ pub struct LoopConfig {
     /// final graph with the design effect of their place,
     /// `1 + ρ·(m_j + m_k − 2)` ([`DENSIFY_CORRELATION`],
     /// [`places`](crate::loops::places)), as the densified ones always do.
-    /// Thresholded scans make loops that share a place share an error: a
-    /// wall's band is thicker the farther it is seen, so matches between
-    /// two places measure their displacement long by about the same
-    /// amount, which independent loops would pile up into a stretched
-    /// map. Applied from the end of the mission pass (after
-    /// densification, before the final solve); during the pass the
-    /// clique's loops enter as matched, which kept more of the gain
-    /// (EXPERIMENTS.md § The real map's scale).
+    /// Thresholded scans make loops that share a place share an error:
+    /// the loops between two places measure their displacement long by
+    /// about the same amount (in simulated point sets, from the far part
+    /// of the bands, which grows with range), which independent loops
+    /// would pile up into a stretched map. Applied from the end of the
+    /// mission pass (after densification, before the final solve);
+    /// during the pass the clique's loops enter as matched, so that the
+    /// running estimate, which sets the next loops' priors and their
+    /// consistency, keeps their full weight.
     ///
     /// Not a config key (`#[serde(skip)]`): derived from the data, true
     /// for binary (scan-only) intensities, false otherwise (the pipeline's
     /// scan-only preparation in the tools crate; measured: EXPERIMENTS.md
-    /// § The real map's scale).
+    /// § Where the loops' excess length comes from).
     #[serde(skip)]
     pub shared_place_errors: bool,
 }

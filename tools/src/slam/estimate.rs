@@ -115,9 +115,10 @@ impl Estimate {
     }
 
     /// Makes the accepted loops exactly `accepted` (id, from, to,
-    /// `from_from_to`, covariance, metadata; ids ascending); returns whether
-    /// anything changed (an id, or the weight of a loop kept). The loop closer passes edges without metadata and attaches
-    /// it once, before the final solve ([`Self::attach_loop_metadata`]):
+    /// `from_from_to`, covariance, metadata; ids ascending); returns
+    /// whether anything changed (an id, or the weight of a loop kept). The
+    /// loop closer passes edges without metadata and attaches it once,
+    /// before the final solve ([`Self::attach_loop_metadata`]):
     /// the loops change at nearly every node of a long mission, and making
     /// and dropping every loop's metadata each time grew with the square of
     /// the mission.

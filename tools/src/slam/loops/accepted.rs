@@ -83,18 +83,16 @@ impl LoopCloser<'_> {
         let rho = DENSIFY_CORRELATION;
         let inflations = self.dense.iter().map(|m| places.design_effect(m, rho));
         let shared = self.config.shared_place_errors;
+        let clique_inflation = |m: &LoopMeasurement| {
+            if shared {
+                places.design_effect(m, rho)
+            } else {
+                1.0
+            }
+        };
         primary
             .into_iter()
-            .map(|m| {
-                (
-                    m,
-                    if shared {
-                        places.design_effect(m, rho)
-                    } else {
-                        1.0
-                    },
-                )
-            })
+            .map(|m| (m, clique_inflation(m)))
             .chain(self.dense.iter().zip(inflations))
             .filter_map(|(m, inflation)| loop_edge(m, inflation))
             .collect()
