@@ -75,9 +75,11 @@ pub struct RotationConfig {
     /// this far from the last node, in metres of translation plus the
     /// heading change times half the beams' reach (keyframe selection:
     /// `crate::nodes::spacing`); the others are dropped. 0 makes every
-    /// rotation a node. Default 2 m (why, and what it drops on the
-    /// benchmark missions: EXPERIMENTS.md § Long missions, "The node
-    /// spacing as `run`'s default").
+    /// rotation a node; whatever the spacing, at most
+    /// `nodes::spacing::MAX_THINNED_IN_A_ROW` rotations in a row are
+    /// dropped. Default 2 m (the choice and its measurements:
+    /// EXPERIMENTS.md § Long missions, "The node spacing as `run`'s
+    /// default").
     pub node_spacing_m: f64,
 }
 

@@ -253,12 +253,13 @@ pub(crate) fn prepare<'m, 'c>(
     Ok((mission, config, intensity, warnings))
 }
 
-/// Scan-only data: [`intensity::prepare_binary`] on the mission's beams and a
-/// copy of the config when the beams' intensities are binary, whose
-/// sequential matches then read a submap ([`SUBMAP_ROTATIONS_SCAN_ONLY`]) and whose
-/// loops that share a place share their weight (`LoopConfig::shared_place_errors`); the mission
-/// and the config are borrowed as they are otherwise. The effective config
-/// (`config.toml`) carries what was derived.
+/// Scan-only data: [`intensity::prepare_binary`] on the mission's beams and
+/// a copy of the config when the beams' intensities are binary, whose
+/// sequential matches then read a submap ([`SUBMAP_ROTATIONS_SCAN_ONLY`])
+/// and whose loops that share a place share their weight
+/// (`LoopConfig::shared_place_errors`); the mission and the config are
+/// borrowed as they are otherwise. The effective config (`config.toml`)
+/// carries what was derived.
 fn prepare_scan_only<'m, 'c>(
     mission: Cow<'m, Mission>,
     config: &'c SlamConfig,
