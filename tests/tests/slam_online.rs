@@ -148,11 +148,14 @@ fn beam_by_beam_replay_emits_one_estimate_per_node_in_order_near_the_truth() {
         .collect();
     let (online, dr) = (ate_of(&emitted, &output), ate_of(&dead_reckoning, &output));
     eprintln!("online ATE {online:.3} m, dead reckoning {dr:.3} m");
-    // Measured 0.767 m against 0.962 m (deterministic): the emitted
-    // estimates have only the loops closed so far.
-    assert!(online < 0.85, "online ATE {online:.3} m");
+    // The emitted estimates have only the loops closed so far, but each is
+    // the graph solved with its node's odometry, sequential match and
+    // heading prior (not the last solve composed with the odometry, which
+    // carries the dead reckoning's drift between loops): README.md
+    // § Online gives the figures.
+    assert!(online < 0.55, "online ATE {online:.3} m");
     assert!(
-        online < 0.85 * dr,
+        online < 0.6 * dr,
         "online ATE {online:.3} m, dead reckoning {dr:.3} m"
     );
     let finished = output.report.ate_rmse_m.unwrap();

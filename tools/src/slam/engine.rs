@@ -7,7 +7,11 @@
 //! through it (batch). Per completed rotation the engine builds the node
 //! (scan and image motion-compensated into its central pose), matches it
 //! against its predecessor, adds the chain edges, looks for loop closures
-//! and runs the incremental solves they trigger; [`SlamEngine::finish`]
+//! and runs the incremental solves they trigger; online, it then emits
+//! the graph solved with the new node's edges (its odometry, sequential
+//! match and heading prior: [`crate::slam::estimate::Estimate::solved_view`], which leaves the
+//! estimate that gates the loop candidates as the solves left it, so that
+//! the online and the batch run close the same loops); [`SlamEngine::finish`]
 //! adds the end-of-mission steps (loop densification, the robust final
 //! solve, the report).
 //!
@@ -89,7 +93,9 @@ pub struct NodeEvent {
     /// The rotation's central time, s (the node's stamp).
     pub stamp_s: f64,
     /// The node's `world_from_vehicle` estimate when emitted (dead-reckoning
-    /// world frame, see [`crate::slam::result`]).
+    /// world frame, see [`crate::slam::result`]): online, the graph solved
+    /// with this node's edges; in batch, the running estimate (the last
+    /// solve with the later nodes placed by their odometry).
     pub pose: Se2,
     /// The current estimate of every node `0..=node_id`, same frame.
     pub poses: Vec<Se2>,
@@ -180,9 +186,9 @@ impl<'c> SlamEngine<'c> {
         let ready =
             ReadyRotations::new(&config.rotation, config.dead_reckoning.max_extrapolation_s)
                 .map_err(|e| SlamError::frontend("rotation assembly", e))?;
-        let batch_size = match navigation {
-            NavigationSource::Given(_) => 8 * rayon::current_num_threads().max(1),
-            _ => 1,
+        let (batch_size, emit_solved) = match navigation {
+            NavigationSource::Given(_) => (8 * rayon::current_num_threads().max(1), false),
+            _ => (1, true),
         };
         Ok(Self {
             config,
@@ -195,7 +201,7 @@ impl<'c> SlamEngine<'c> {
             batch_size,
             rotation_ranges: Vec::new(),
             reach_m: 0.0,
-            graph: GraphState::new(config)?,
+            graph: GraphState::new(config, emit_solved)?,
             spacing: NodeSpacing::new(config.rotation.node_spacing_m),
             skipped: Vec::new(),
             latencies_s: Vec::new(),
@@ -225,9 +231,11 @@ impl<'c> SlamEngine<'c> {
         self.graph.nodes.len()
     }
 
-    /// The current estimate of every node's `world_from_vehicle`.
+    /// The current estimate of every node's `world_from_vehicle`: online,
+    /// the graph solved with the last node's edges; in batch, the estimate
+    /// that gates the loop candidates (see [`NodeEvent::poses`]).
     pub fn poses(&self) -> &[Se2] {
-        self.graph.estimate.poses()
+        self.graph.emitted_poses()
     }
 
     /// Takes the next sonar beam; returns the nodes it completes.
@@ -373,7 +381,7 @@ impl<'c> SlamEngine<'c> {
         self.graph.add(node, navigation)?;
         let latency_s = build_s + t.elapsed().as_secs_f64();
         self.latencies_s.push(latency_s);
-        let poses = self.graph.estimate.poses().to_vec();
+        let poses = self.graph.emitted_poses().to_vec();
         let node_id = poses.len() - 1;
         Ok(Some(NodeEvent {
             node_id,

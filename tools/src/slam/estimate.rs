@@ -4,8 +4,10 @@
 //! edge and, when accepted, the sequential match edge to the previous node;
 //! accepted loop edges come and go as the set of mutually consistent loops
 //! changes. A new node's pose is the previous node's current pose composed
-//! with the sequential match (or the odometry when there is none), so the
-//! estimate stays corrected between solves.
+//! with the odometry (whose heading is tied to the compass), so the
+//! estimate stays corrected between solves; [`Estimate::solved_view`]
+//! gives the graph solved with the new node's own edges as well, without
+//! moving the estimate (what the online engine emits).
 //!
 //! Incremental solves start from the current estimate
 //! (`Initialisation::Current`) with a small iteration limit, reusing one
@@ -31,6 +33,9 @@ pub struct Estimate {
     loops: BTreeMap<usize, Edge>,
     links: LinkGraph,
     solver: Solver,
+    /// The solver of [`Self::solved_view`], apart from `solver` so that
+    /// the view leaves the incremental solves' state as it was.
+    view_solver: Solver,
     pub incremental_solves: usize,
     pub incremental_symbolic_reused: usize,
     pub incremental_time_s: f64,
@@ -45,6 +50,7 @@ impl Estimate {
             loops: BTreeMap::new(),
             links: LinkGraph::new(),
             solver: Solver::new(backend.incremental_solver())?,
+            view_solver: Solver::new(backend.incremental_solver())?,
             incremental_solves: 0,
             incremental_symbolic_reused: 0,
             incremental_time_s: 0.0,
@@ -239,6 +245,29 @@ impl Estimate {
         Ok(summary)
     }
 
+    /// The graph as it stands (every edge so far) solved as an incremental
+    /// solve would, without changing the estimate: the poses, `world_from_node`.
+    /// Starts from `warm` (an earlier view, which may hold fewer nodes),
+    /// each node after it placed from the one before by the estimate's own
+    /// relative pose; from the estimate itself when `warm` is empty.
+    /// The estimate, which gates and places the loop candidates, keeps
+    /// being solved only when the accepted loops change
+    /// ([`super::engine`]'s solve schedule). Errors: a failed solve.
+    pub fn solved_view(&mut self, warm: &[Se2]) -> Result<Vec<Se2>, SlamError> {
+        let mut graph = self.build_graph(false)?;
+        let mut start: Vec<Se2> = warm.iter().take(self.poses.len()).copied().collect();
+        for k in start.len()..self.poses.len() {
+            let pose = match k {
+                0 => self.poses[0],
+                _ => start[k - 1].compose(&self.poses[k - 1].inverse().compose(&self.poses[k])),
+            };
+            start.push(pose);
+        }
+        graph.set_poses(&start);
+        self.view_solver.optimize(&mut graph)?;
+        Ok(graph.poses())
+    }
+
     /// The final batch solve with `backend.solver`; returns the optimised
     /// graph and the summary, and keeps the solution as the estimate.
     pub fn optimise_batch(
@@ -367,5 +396,28 @@ mod tests {
         assert_eq!(with, without);
         assert!(estimate.optimise_incremental().is_ok());
         assert_eq!(estimate.poses(), &without[..]);
+    }
+    #[test]
+    fn a_solved_view_is_the_incremental_solve_and_leaves_the_estimate_as_it_was() {
+        let (mut estimate, loops) = square();
+        estimate.set_loops(loops.clone());
+        let before = estimate.poses().to_vec();
+        // From the estimate itself, and from an earlier view of fewer
+        // nodes (the estimate's relative poses carry it to the others).
+        let view = estimate.solved_view(&[]).unwrap();
+        let from_partial = estimate.solved_view(&view[..2]).unwrap();
+        assert_eq!(estimate.poses(), &before[..], "the estimate is not moved");
+        assert_eq!(estimate.incremental_solves, 0);
+        let (mut solved, _) = square();
+        solved.set_loops(loops);
+        solved.optimise_incremental().unwrap();
+        for (a, b) in view.iter().zip(solved.poses()) {
+            assert!((a.to_vector() - b.to_vector()).norm() < 1e-9, "{a:?} {b:?}");
+        }
+        for (a, b) in from_partial.iter().zip(&view) {
+            assert!((a.to_vector() - b.to_vector()).norm() < 1e-6, "{a:?} {b:?}");
+        }
+        // The loops moved the nodes: the view is not the estimate.
+        assert!((view[2].to_vector() - before[2].to_vector()).norm() > 0.01);
     }
 }

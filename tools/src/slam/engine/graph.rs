@@ -10,7 +10,7 @@ use crate::slam::{SlamError, sequential};
 use echofield_frontend::dead_reckoning::Navigation;
 use echofield_frontend::loops::SequentialRecord;
 use echofield_frontend::nodes::NodeData;
-use echofield_graph::EdgeKind;
+use echofield_graph::{EdgeKind, Se2};
 use std::time::Instant;
 
 /// Nodes, their chain edges, the loop closer and the estimate.
@@ -30,10 +30,17 @@ pub(super) struct GraphState<'c> {
     pub loops_s: f64,
     /// When the incremental solves run ([`super::solve_schedule`]).
     schedule: SolveSchedule,
+    /// Whether every node's event carries the graph solved with that
+    /// node's edges ([`Self::emitted_poses`]); else the estimate as the
+    /// solve schedule left it.
+    emit_solved: bool,
+    /// The poses emitted with the last node when `emit_solved`.
+    emitted: Vec<Se2>,
 }
 
 impl<'c> GraphState<'c> {
-    pub fn new(config: &'c SlamConfig) -> Result<Self, SlamError> {
+    /// `emit_solved`: see the field (the online engine sets it).
+    pub fn new(config: &'c SlamConfig, emit_solved: bool) -> Result<Self, SlamError> {
         Ok(Self {
             config,
             nodes: Vec::new(),
@@ -44,7 +51,23 @@ impl<'c> GraphState<'c> {
             sequential_s: 0.0,
             loops_s: 0.0,
             schedule: SolveSchedule::default(),
+            emit_solved,
+            emitted: Vec::new(),
         })
+    }
+
+    /// The current estimate of every node as the engine emits it: with
+    /// `emit_solved`, the graph solved with the last node's edges (its
+    /// odometry, sequential match and heading prior, and every edge before;
+    /// [`Estimate::solved_view`]); else the estimate, which is solved only
+    /// when the accepted loops change and places a new node by the
+    /// odometry from the one before.
+    pub fn emitted_poses(&self) -> &[Se2] {
+        if self.emit_solved && self.emitted.len() == self.estimate.len() {
+            &self.emitted
+        } else {
+            self.estimate.poses()
+        }
     }
 
     /// Adds `node` (the next node, id `nodes.len()`): sequential match
@@ -75,6 +98,7 @@ impl<'c> GraphState<'c> {
         self.nodes.push(node);
         self.add_chain(k, navigation)?;
         let t = Instant::now();
+        let solves_before = self.estimate.incremental_solves;
         let incremental = self.config.backend.incremental;
         let (error, schedule) = (&mut self.incremental_error, &mut self.schedule);
         let mut optimise = |estimate: &mut Estimate| -> Result<(), SlamError> {
@@ -88,6 +112,14 @@ impl<'c> GraphState<'c> {
             incremental && self.schedule.after_node(k),
             &mut self.incremental_error,
         );
+        if self.emit_solved {
+            self.emitted = if self.estimate.incremental_solves > solves_before {
+                self.estimate.poses().to_vec()
+            } else {
+                // A failed view leaves the estimate's poses to be emitted.
+                self.estimate.solved_view(&self.emitted).unwrap_or_default()
+            };
+        }
         self.loops_s += t.elapsed().as_secs_f64();
         Ok(())
     }
