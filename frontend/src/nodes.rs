@@ -6,9 +6,10 @@
 //! (dead reckoning extrapolates at most `max_extrapolation_s` beyond its
 //! span): on the St Pere logs the first ~183 s of beams precede the first
 //! DVL sample, and those rotations are skipped and listed in the report
-//! ([`SkippedRotation`]). A rotation with too few ranges still becomes a
-//! node (its dead-reckoning edges keep the chain connected and its image can
-//! still be matched against); its scan is empty.
+//! (`SkippedRotation` in `echofield::slam::result`). A rotation with too
+//! few ranges still becomes a node (its dead-reckoning edges keep the chain
+//! connected and its image can still be matched against); its scan is
+//! empty.
 //!
 //! Rotations are built one at a time, as they complete. Which of them
 //! become nodes is [`spacing`]'s rule (every one by default).

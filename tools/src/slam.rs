@@ -10,9 +10,10 @@
 //! 1. **Dead reckoning** (EKF over DVL and heading, [`dead_reckoning`](echofield_frontend::dead_reckoning)):
 //!    the causal filter online, the navigation computed beforehand over
 //!    the whole mission (smoothed) in batch.
-//! 2. **Nodes** ([`nodes`]): the beams are cut into rotations; each rotation
-//!    the navigation covers becomes a node at its central pose, with `S_k`
-//!    and `I_k` motion-compensated into that pose (eq. 3-4), built once.
+//! 2. **Nodes** ([`nodes`](echofield_frontend::nodes)): the beams are cut
+//!    into rotations; each rotation the navigation covers becomes a node at
+//!    its central pose, with `S_k` and `I_k` motion-compensated into that
+//!    pose (eq. 3-4), built once.
 //! 3. **Chain edges** ([`sequential`]): the dead-reckoning odometry edge
 //!    `k-1 -> k` with the EKF's relative covariance, and the sequential
 //!    match `S_k` vs `I_{k-1}` (eq. 5-6) as a `Sequential` edge when it

@@ -1,5 +1,5 @@
 //! The constant-velocity motion model of the dead-reckoning EKF (Ribas et
-//! al., the seed paper's reference [10]): the state, its prediction with
+//! al., the seed paper's reference \[10\]): the state, its prediction with
 //! Jacobian, and the process noise of white accelerations.
 //!
 //! State `s = (x, y, ψ, u, v, r)`: `world_from_vehicle` (m, m, rad) and the

@@ -255,7 +255,7 @@ impl PyramidLevel {
     /// `[b·s, (b+1)·s)`, that is of `L_h` over those cells and over the
     /// same cells shifted by `2^h = 4·(s/2)`: four of this level's blocks
     /// of `s/2` cells, `2b, 2b + 1, 2b + 4, 2b + 5` (0 beyond the grid). Maxima of the
-    /// same quantised cells as [`PyramidLevel::pooled`] of the
+    /// same quantised cells as `PyramidLevel::pooled` (test only) of the
     /// full-resolution `L_(h+1)`, so the values are the same, for a pass
     /// over this level instead of two over the raster.
     fn coarsened(&self) -> Self {

@@ -12,8 +12,9 @@
 //! | `localization.mcap` | the map's echoes and nodes, and per rotation the particle cloud and the estimate, for Foxglove |
 //! | `report.json` | the [`LocalizeReport`], written last |
 //!
-//! The folder is written whole ([`OutputFolder`]): into a fresh folder
-//! swapped in at the end.
+//! The folder is written whole
+//! ([`OutputFolder`](crate::output::folder::OutputFolder)): into a fresh
+//! folder swapped in at the end.
 
 mod mcap;
 mod plot;

@@ -55,6 +55,10 @@
 //!         println!("node {} at {:.1} s: {:?}", event.node_id, event.stamp_s, event.pose);
 //!     }
 //! }
+//! // The last rotation completes when the data ends.
+//! for event in engine.end_of_data()? {
+//!     println!("node {} at {:.1} s: {:?}", event.node_id, event.stamp_s, event.pose);
+//! }
 //! let output = engine.finish(&[])?;
 //! # Ok::<(), anyhow::Error>(())
 //! ```
@@ -270,6 +274,22 @@ impl<'c> SlamEngine<'c> {
         self.navigation.push_attitude(sample)?;
         self.timings.dead_reckoning_s += t.elapsed().as_secs_f64();
         self.ready.observe(sample.stamp_s);
+        self.process_ready()
+    }
+
+    /// The end of the data: the last rotation (when kept) and every
+    /// rotation still waiting for the navigation are processed now;
+    /// returns the nodes they complete, the last events of an online run.
+    /// [`Self::finish`] does the same (and drops the events) if this was
+    /// not called; a second call returns nothing. Push nothing after it.
+    pub fn end_of_data(&mut self) -> Result<Vec<NodeEvent>, SlamError> {
+        if self.ready.finished() {
+            return Ok(Vec::new());
+        }
+        if let Some(rotation) = self.ready.finish() {
+            self.rotation_ranges
+                .push((rotation.beams.clone(), f64::NAN));
+        }
         self.process_ready()
     }
 

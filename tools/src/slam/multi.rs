@@ -21,7 +21,7 @@
 //!    agreeing set that [`ALTERNATIVE_MIN_LOOPS`] loops confirm is taken
 //!    ([`confirm_placement`]): on the real St Pere halves the largest set
 //!    can agree on the fit of a near-parallel quay.
-//! 4. The placed missions become one graph ([`merge`]): cross-mission loop
+//! 4. The placed missions become one graph ([`mod@merge`]): cross-mission loop
 //!    candidates are matched and checked like a run's loops, and the graph
 //!    is solved with only the anchor's first node fixed.
 //!

@@ -215,6 +215,10 @@ fn replay_records<'m, B: Borrow<SonarBeam>>(
             on_event(event);
         }
     }
+    for event in engine.end_of_data()? {
+        progress.node_done(event.node_id + 1, event.loops_accepted);
+        on_event(event);
+    }
     progress.beams(total, total);
     Ok(())
 }
