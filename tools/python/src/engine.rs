@@ -227,6 +227,15 @@ impl Engine {
         self.events(py, events)
     }
 
+    /// The end of the data: processes the last rotation and those still
+    /// waiting for the navigation; returns the nodes they complete (as
+    /// `push_beam`). `finish()` does it too when this was not called;
+    /// push nothing after it.
+    fn end_of_data<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
+        let events = self.with_engine(|engine| engine.end_of_data())?;
+        self.events(py, events)
+    }
+
     /// Nodes built so far.
     #[getter]
     fn nodes(&mut self) -> PyResult<usize> {

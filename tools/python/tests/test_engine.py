@@ -60,6 +60,9 @@ def test_engine_beam_by_beam_equals_the_online_replay(tank):
     events = []
     for kind, args in records_in_time_order(tank):
         events.extend(push[kind](*args))
+    # The last rotation completes when the data ends.
+    events.extend(engine.end_of_data())
+    assert engine.end_of_data() == []
     assert [e["node_id"] for e in events] == list(range(len(events)))
     assert engine.nodes == len(events)
     np.testing.assert_array_equal(engine.poses[-1], events[-1]["pose"])

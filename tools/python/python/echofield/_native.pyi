@@ -125,6 +125,9 @@ class Engine:
         yaw_rad: float,
         yaw_rate_radps: Optional[float] = None,
     ) -> List[Dict[str, Any]]: ...
+    def end_of_data(self) -> List[Dict[str, Any]]:
+        """The end of the data: returns the nodes that the last rotation
+        and those still waiting complete (as ``push_beam``)."""
     @property
     def nodes(self) -> int: ...
     @property

@@ -22,7 +22,8 @@ pub(super) struct GraphState<'c> {
     pub sequential: Vec<SequentialRecord>,
     pub estimate: Estimate,
     pub closer: LoopCloser<'c>,
-    /// The first failed incremental solve (the estimate stays as it was).
+    /// The first failed incremental solve (the estimate stays as it was)
+    /// or online view ([`Estimate::solved_view`]; the estimate is emitted).
     pub incremental_error: Option<String>,
     /// Time spent on sequential matches, s.
     pub sequential_s: f64,
@@ -116,8 +117,15 @@ impl<'c> GraphState<'c> {
             self.emitted = if self.estimate.incremental_solves > solves_before {
                 self.estimate.poses().to_vec()
             } else {
-                // A failed view leaves the estimate's poses to be emitted.
-                self.estimate.solved_view(&self.emitted).unwrap_or_default()
+                // A failed view is kept with the failed solves (the first
+                // goes into the report) and the estimate's poses are
+                // emitted instead ([`Self::emitted_poses`]).
+                self.estimate
+                    .solved_view(&self.emitted)
+                    .unwrap_or_else(|e| {
+                        self.incremental_error.get_or_insert(e.to_string());
+                        Vec::new()
+                    })
             };
         }
         self.loops_s += t.elapsed().as_secs_f64();
