@@ -6,6 +6,8 @@
 //! and `finish()` the same as `run_mission` on the same input.
 
 use echofield::eval::{Alignment, ate};
+use echofield::slam::online::run_online;
+use echofield::slam::outputs::write_outputs;
 use echofield::slam::{
     NoProgress, NodeEvent, SlamConfig, SlamEngine, run_mission, run_mission_online,
     run_mission_taking_beams,
@@ -338,4 +340,34 @@ fn assert_same_estimate(a: &NodeEvent, b: &NodeEvent) {
         (a.node_id, a.rotation_index, a.stamp_s, a.pose, &a.poses),
         (b.node_id, b.rotation_index, b.stamp_s, b.pose, &b.poses)
     );
+}
+
+/// `run_online` keeps what it emitted in the output, and the outputs of an
+/// online run hold it: `online_tum.txt` (one line per node, as emitted) and
+/// its track in `trajectory.png`; a batch run writes no `online_tum.txt`.
+#[test]
+fn an_online_run_writes_what_it_emitted() {
+    let mission = marina();
+    let config = SlamConfig::default();
+    let online = run_online(mission, &config, &NoProgress).unwrap();
+    let emitted = online.emitted.as_ref().expect("an online run's estimates");
+    assert_eq!(emitted.len(), online.nodes.len());
+    let dir = tempfile::tempdir().unwrap();
+    write_outputs(&dir.path().join("online"), &online, mission).unwrap();
+    let text = std::fs::read_to_string(dir.path().join("online/online_tum.txt")).unwrap();
+    let rows: Vec<Vec<f64>> = text
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .map(|l| l.split_whitespace().map(|v| v.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(rows.len(), emitted.len());
+    for (row, e) in rows.iter().zip(emitted) {
+        assert!((row[0] - e.stamp_s).abs() < 1e-5, "{row:?} {e:?}");
+        assert!((row[1] - e.pose.x()).abs() < 1e-5 && (row[2] - e.pose.y()).abs() < 1e-5);
+    }
+    assert!(dir.path().join("online/trajectory.png").exists());
+    let batch = run_mission(mission, &config, &NoProgress).unwrap();
+    assert!(batch.emitted.is_none());
+    write_outputs(&dir.path().join("batch"), &batch, mission).unwrap();
+    assert!(!dir.path().join("batch/online_tum.txt").exists());
 }

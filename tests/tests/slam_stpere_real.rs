@@ -122,7 +122,7 @@ fn the_optimised_map_is_sharper_than_the_dead_reckoning_and_dgps_maps() {
 fn the_real_mission_online_emits_estimates_well_ahead_of_dead_reckoning() {
     let (mission, config) = calibrated();
     let online = run_online(mission, config, &NoProgress).unwrap();
-    let report = &online.output.report;
+    let report = &online.report;
     let emitted = report.online.as_ref().unwrap().ate_rmse_m.unwrap();
     let (finished, dr) = (
         report.ate_rmse_m.unwrap(),
@@ -131,7 +131,7 @@ fn the_real_mission_online_emits_estimates_well_ahead_of_dead_reckoning() {
     eprintln!(
         "online: emitted {emitted:.3} m, after finish {finished:.3} m, causal dead reckoning {dr:.3} m"
     );
-    assert_eq!(online.emitted.len(), report.nodes);
+    assert_eq!(online.emitted.as_ref().unwrap().len(), report.nodes);
     // Each emitted estimate is the graph solved with its own node's edges;
     // composed from the last solve by the odometry they drift as the dead
     // reckoning does between loops (about 0.7 of it here).

@@ -4,13 +4,12 @@
 use crate::arrays::{dict_to_toml, poses_array, rows_array, stamped_array, to_python};
 use crate::mission::Mission;
 use echofield::output::folder::OutputFolder;
-use echofield::output::write_atomic;
 use echofield::slam::online::run_online;
 use echofield::slam::outputs::{FOLDER_FILES, write_output_files};
 use echofield::slam::{NoProgress, RunInfo, SlamConfig, SlamOutput, load_mission};
 use echofield_frontend::sensors::Mission as RustMission;
 use echofield_graph::Se2;
-use echofield_graph::io::{TrajectoryPose, write_tum};
+use echofield_graph::io::TrajectoryPose;
 use numpy::PyArray1;
 use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
@@ -89,21 +88,19 @@ pub fn run(
                 "mission: expected an echofield.Mission or the path of a mission",
             ));
         };
-    let (output_slam, emitted) = py
-        .detach(
-            || -> anyhow::Result<(SlamOutput, Option<Vec<TrajectoryPose>>)> {
-                run_and_write(
-                    &mission,
-                    &config,
-                    output.as_deref(),
-                    online,
-                    mission_path.as_deref(),
-                    config_path.as_deref(),
-                )
-            },
-        )
+    let output_slam = py
+        .detach(|| -> anyhow::Result<SlamOutput> {
+            run_and_write(
+                &mission,
+                &config,
+                output.as_deref(),
+                online,
+                mission_path.as_deref(),
+                config_path.as_deref(),
+            )
+        })
         .map_err(crate::to_py_err)?;
-    RunResult::new(py, &output_slam, emitted.as_deref(), output)
+    RunResult::new(py, &output_slam, output_slam.emitted.as_deref(), output)
 }
 
 /// The run, and its outputs written into `output` when given (the folder
@@ -115,7 +112,7 @@ fn run_and_write(
     online: bool,
     mission_path: Option<&Path>,
     config_path: Option<&Path>,
-) -> anyhow::Result<(SlamOutput, Option<Vec<TrajectoryPose>>)> {
+) -> anyhow::Result<SlamOutput> {
     use anyhow::Context;
     let inputs: Vec<&Path> = mission_path.into_iter().collect();
     let run_info = output.map(|dir| RunInfo::start("run (python)", &inputs, config_path, dir));
@@ -123,29 +120,18 @@ fn run_and_write(
         .map(|dir| OutputFolder::prepare(dir, FOLDER_FILES))
         .transpose()?;
     let failed = || format!("SLAM on {} failed", mission.name);
-    let (mut slam, emitted) = if online {
-        let run = run_online(mission, config, &NoProgress).with_context(failed)?;
-        (run.output, Some(run.emitted))
+    let mut slam = if online {
+        run_online(mission, config, &NoProgress).with_context(failed)?
     } else {
-        let run =
-            echofield::slam::run_mission(mission, config, &NoProgress).with_context(failed)?;
-        (run, None)
+        echofield::slam::run_mission(mission, config, &NoProgress).with_context(failed)?
     };
     if let (Some(folder), Some(dir)) = (folder, output) {
         slam.report.run = run_info;
-        let write = || -> anyhow::Result<()> {
-            if let Some(emitted) = &emitted {
-                write_atomic(&folder.path().join("online_tum.txt"), |w| {
-                    Ok(write_tum(emitted, w)?)
-                })?;
-            }
-            write_output_files(folder.path(), &slam, mission)
-        };
-        write()
+        write_output_files(folder.path(), &slam, mission)
             .and_then(|()| folder.commit())
             .with_context(|| format!("cannot write the outputs into {}", dir.display()))?;
     }
-    Ok((slam, emitted))
+    Ok(slam)
 }
 
 /// The defaults of the pipeline's configuration: a dict of sections (as

@@ -5,7 +5,6 @@
 
 use anyhow::{Context, Result};
 use echofield::output::folder::OutputFolder;
-use echofield::output::write_atomic;
 use echofield::slam::online::run_online;
 use echofield::slam::outputs::{FOLDER_FILES, write_output_files};
 use echofield::slam::result::Report;
@@ -15,7 +14,6 @@ use echofield::slam::{
 };
 use echofield_datasets::mcap::{ChannelUse, TopicChoice};
 use echofield_frontend::sensors::Mission;
-use echofield_graph::io::write_tum;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -172,25 +170,14 @@ pub fn run(args: Args) -> Result<()> {
     let reading_s = start.elapsed().as_secs_f64();
     let progress = BarProgress::new();
     let failed = || format!("SLAM on {} failed", args.mission.display());
-    let (mut output, emitted) = if args.online {
-        let run = run_online(&mission, &config, &progress).with_context(failed)?;
-        (run.output, Some(run.emitted))
+    let mut output = if args.online {
+        run_online(&mission, &config, &progress).with_context(failed)?
     } else {
-        (
-            run_mission_taking_beams(&mut mission, &config, &progress).with_context(failed)?,
-            None,
-        )
+        run_mission_taking_beams(&mut mission, &config, &progress).with_context(failed)?
     };
     output.report.timings.reading_s = Some(reading_s);
     output.report.run = Some(run_info);
-    let online_tum = |dir: &std::path::Path| -> Result<()> {
-        let Some(emitted) = &emitted else {
-            return Ok(());
-        };
-        write_atomic(&dir.join("online_tum.txt"), |w| Ok(write_tum(emitted, w)?))
-    };
-    online_tum(folder.path())
-        .and_then(|()| write_output_files(folder.path(), &output, &mission))
+    write_output_files(folder.path(), &output, &mission)
         .and_then(|()| folder.commit())
         .with_context(|| format!("cannot write the outputs into {}", args.output.display()))?;
     let report = &output.report;

@@ -18,6 +18,8 @@ use plotters::style::colors::colormaps::{ColorMap, ViridisRGB};
 pub const DEAD_RECKONING: RGBColor = RGBColor(230, 120, 20);
 /// Optimised (SLAM): blue.
 pub const OPTIMISED: RGBColor = RGBColor(30, 90, 200);
+/// Online, each node as emitted: green.
+pub const ONLINE: RGBColor = RGBColor(40, 160, 80);
 /// Ground truth: dark grey.
 pub const GROUND_TRUTH: RGBColor = RGBColor(60, 60, 60);
 

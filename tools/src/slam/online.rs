@@ -9,22 +9,14 @@ use crate::eval::{Alignment, ate};
 use echofield_frontend::sensors::Mission;
 use echofield_graph::io::TrajectoryPose;
 
-/// An online run: the finished output (its report's `online` filled) and
-/// the emitted estimates, one per node in node order.
-pub struct OnlineRun {
-    pub output: SlamOutput,
-    /// `(node stamp, world_from_vehicle when emitted)`, dead-reckoning
-    /// world frame.
-    pub emitted: Vec<TrajectoryPose>,
-}
-
-/// Runs `mission` through [`run_mission_online`] and reports the emitted
-/// estimates. Errors as [`super::run_mission`].
+/// Runs `mission` through [`run_mission_online`]; the output's `emitted`
+/// holds each node's estimate as it was emitted and its report's `online`
+/// their ATE and the work per rotation. Errors as [`super::run_mission`].
 pub fn run_online(
     mission: &Mission,
     config: &SlamConfig,
     progress: &dyn ProgressSink,
-) -> Result<OnlineRun, SlamError> {
+) -> Result<SlamOutput, SlamError> {
     let mut emitted = Vec::new();
     let mut latencies_s = Vec::new();
     let mut on_event = |event: NodeEvent| {
@@ -36,7 +28,8 @@ pub fn run_online(
     };
     let mut output = run_mission_online(mission, config, progress, &mut on_event)?;
     output.report.online = Some(online_report(&output, &emitted, &mut latencies_s));
-    Ok(OnlineRun { output, emitted })
+    output.emitted = Some(emitted);
+    Ok(output)
 }
 
 fn online_report(

@@ -12,7 +12,7 @@
 //! | `poses.csv` | optimised node poses, `stamp_s,x_m,y_m,theta_rad` |
 //! | `graph.g2o` | the optimised pose graph (`VERTEX_SE2`, `EDGE_SE2`, `EDGE_PRIOR_SE2`, `FIX` last) |
 //! | `loops.csv` | every loop-closure candidate ([`loops_csv`]) |
-//! | `trajectory.png` | dead reckoning, optimised and (aligned) ground truth, dashed on top |
+//! | `trajectory.png` | dead reckoning, the online estimates as emitted (online runs), optimised and (aligned) ground truth, dashed on top |
 //! | `trajectory_error.png` | the optimised nodes coloured by their position error against the aligned ground truth; only with ground truth |
 //! | `loops.png` | loop candidates over the trajectory, coloured by outcome |
 //! | `mosaic.png`, `mosaic.pgw` | acoustic mosaic at the optimised poses and its world file ([`mosaic`]) |
@@ -47,7 +47,7 @@ use crate::output::folder::OutputFolder;
 use crate::output::write_atomic;
 use crate::plots::loops::{LoopClass, LoopSegment, loops_png};
 use crate::plots::trajectory::{
-    DEAD_RECKONING, GROUND_TRUTH, OPTIMISED, Track, error_png, trajectory_png,
+    DEAD_RECKONING, GROUND_TRUTH, ONLINE, OPTIMISED, Track, error_png, trajectory_png,
 };
 use crate::slam::{NodeRecord, SlamOutput};
 use anyhow::{Context, Result};
@@ -184,6 +184,9 @@ fn write_tables(dir: &Path, output: &SlamOutput, loops: &[LoopRow]) -> Result<()
     write_atomic(&dir.join("dead_reckoning_tum.txt"), |w| {
         Ok(write_tum(&dead_reckoning, w)?)
     })?;
+    if let Some(emitted) = &output.emitted {
+        write_atomic(&dir.join("online_tum.txt"), |w| Ok(write_tum(emitted, w)?))?;
+    }
     let dense: Vec<TrajectoryPose> = output
         .navigation_rate_trajectory()
         .into_iter()
@@ -296,6 +299,20 @@ fn trajectory_tracks(output: &SlamOutput, world_from_gt: Option<Se2>) -> Vec<Tra
             dashed: false,
         },
     ];
+    if let Some(emitted) = &output.emitted {
+        // Under the optimised track: where the two agree, the final one
+        // shows.
+        tracks.insert(
+            1,
+            Track {
+                label: "online (each node as emitted)".into(),
+                points: positions(emitted.iter().map(|e| e.pose)),
+                colour: ONLINE,
+                width_px: 2,
+                dashed: false,
+            },
+        );
+    }
     if let (Some(gt), Some(t)) = (&output.ground_truth, world_from_gt) {
         tracks.push(Track {
             label: "ground truth (SE(2)-aligned)".into(),

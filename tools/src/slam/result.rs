@@ -20,6 +20,7 @@ use echofield_frontend::intensity::IntensityKind;
 use echofield_frontend::scan::Scan;
 use echofield_frontend::sensors::SensorMounting;
 use echofield_frontend::warnings::Warnings;
+use echofield_graph::io::TrajectoryPose;
 use echofield_graph::{PoseGraph, Se2};
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -59,6 +60,11 @@ pub struct SlamOutput {
     pub images: Vec<StoredImage>,
     /// The image configuration the images were built with.
     pub image_config: ImageConfig,
+    /// An online run's estimates as they were emitted, one per node in node
+    /// order (`world_from_vehicle` at the node stamp, same frame as the
+    /// nodes); `None` for a batch run. Written as `online_tum.txt` and drawn
+    /// in `trajectory.png`.
+    pub emitted: Option<Vec<TrajectoryPose>>,
 }
 
 impl SlamOutput {

@@ -72,6 +72,7 @@ impl<'c> SlamEngine<'c> {
             scans,
             images,
             image_config: config.image.clone(),
+            emitted: None,
         })
     }
 
