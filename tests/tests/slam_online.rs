@@ -343,8 +343,9 @@ fn assert_same_estimate(a: &NodeEvent, b: &NodeEvent) {
 }
 
 /// `run_online` keeps what it emitted in the output, and the outputs of an
-/// online run hold it: `online_tum.txt` (one line per node, as emitted) and
-/// its track in `trajectory.png`; a batch run writes no `online_tum.txt`.
+/// online run hold it: `online_tum.txt` (one line per node, as emitted),
+/// its track in `trajectory.png` and `mission.mcap`'s `/online/trajectory`;
+/// a batch run writes neither.
 #[test]
 fn an_online_run_writes_what_it_emitted() {
     let mission = marina();
@@ -366,8 +367,24 @@ fn an_online_run_writes_what_it_emitted() {
         assert!((row[1] - e.pose.x()).abs() < 1e-5 && (row[2] - e.pose.y()).abs() < 1e-5);
     }
     assert!(dir.path().join("online/trajectory.png").exists());
+    let topics = |run: &str| -> Vec<String> {
+        let bytes = std::fs::read(dir.path().join(run).join("mission.mcap")).unwrap();
+        mcap::MessageStream::new(&bytes)
+            .unwrap()
+            .map(|m| m.unwrap().channel.topic.clone())
+            .collect()
+    };
+    let online_track = "/online/trajectory";
+    assert_eq!(
+        topics("online")
+            .iter()
+            .filter(|t| *t == online_track)
+            .count(),
+        1
+    );
     let batch = run_mission(mission, &config, &NoProgress).unwrap();
     assert!(batch.emitted.is_none());
     write_outputs(&dir.path().join("batch"), &batch, mission).unwrap();
     assert!(!dir.path().join("batch/online_tum.txt").exists());
+    assert!(!topics("batch").iter().any(|t| t == online_track));
 }

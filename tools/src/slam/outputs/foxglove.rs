@@ -11,6 +11,7 @@
 //! | `/slam/trajectory` | `foxglove.PosesInFrame` | first node | optimised node poses |
 //! | `/dead_reckoning/trajectory` | `foxglove.PosesInFrame` | first node | dead reckoning at the node stamps |
 //! | `/ground_truth/trajectory` | `foxglove.PosesInFrame` | first node | ground truth at the node stamps (aligned) |
+//! | `/online/trajectory` | `foxglove.PosesInFrame` | first node, online runs | each node's estimate as it was emitted |
 //! | `/slam/loops/accepted` | `foxglove.SceneUpdate` | first node | accepted loops as lines between the optimised node positions: green = true, red = false (against ground truth), blue = no ground truth |
 //! | `/slam/loops/rejected` | `foxglove.SceneUpdate` | first node | rejected candidates as thin lines: grey, orange where the rejected match was in fact correct against ground truth (a missed loop) |
 //! | `/slam/mosaic` | `foxglove.Grid` | first node | the acoustic mosaic of `mosaic.png` (every `I_k` at its optimised pose), field `intensity` 0-255 |
@@ -135,9 +136,9 @@ fn write_nodes(
     Ok(())
 }
 
-/// The whole-mission topics at `t0`: the optimised, dead-reckoning and
+/// The whole-mission topics at `t0`: the optimised, dead-reckoning,
 /// (placed in the world frame by `world_from_ground_truth`) ground-truth
-/// trajectories, and the accepted and rejected loops as line segments
+/// and (online runs) emitted trajectories, and the accepted and rejected loops as line segments
 /// between optimised poses.
 fn write_trajectories(
     w: &mut MissionWriter,
@@ -158,6 +159,10 @@ fn write_trajectories(
     if let (Some(gt), Some(world_from_gt)) = (&output.ground_truth, world_from_ground_truth) {
         let poses: Vec<Se2> = gt.iter().map(|(_, p)| world_from_gt.compose(p)).collect();
         w.write_poses_in_frame("/ground_truth/trajectory", t0, FRAME_WORLD, &poses)?;
+    }
+    if let Some(emitted) = &output.emitted {
+        let poses: Vec<Se2> = emitted.iter().map(|e| e.pose).collect();
+        w.write_poses_in_frame("/online/trajectory", t0, FRAME_WORLD, &poses)?;
     }
     for (topic, accepted, thickness_px) in [
         ("/slam/loops/accepted", true, 2.0),
