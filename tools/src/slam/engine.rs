@@ -9,11 +9,13 @@
 //! against its predecessor, adds the chain edges, looks for loop closures
 //! and runs the incremental solves they trigger; online, it then emits
 //! the graph solved with the new node's edges (its odometry, sequential
-//! match and heading prior: [`crate::slam::estimate::Estimate::solved_view`], which leaves the
+//! match and heading prior:
+//! [`crate::slam::estimate::Estimate::solved_view`], which leaves the
 //! estimate that gates the loop candidates as the solves left it, so that
-//! the online and the batch run close the same loops); [`SlamEngine::finish`]
-//! adds the end-of-mission steps (loop densification, the robust final
-//! solve, the report).
+//! the online and the batch run close the same loops).
+//! [`SlamEngine::end_of_data`] processes the rotation the end of the data
+//! completes, and [`SlamEngine::finish`] adds the end-of-mission steps
+//! (loop densification, the robust final solve, the report).
 //!
 //! # Causality
 //! With [`SlamEngine::new`] the navigation is the forward dead-reckoning
