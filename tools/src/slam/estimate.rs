@@ -255,17 +255,25 @@ impl Estimate {
     /// ([`super::engine`]'s solve schedule). Errors: a failed solve.
     pub fn solved_view(&mut self, warm: &[Se2]) -> Result<Vec<Se2>, SlamError> {
         let mut graph = self.build_graph(false)?;
-        let mut start: Vec<Se2> = warm.iter().take(self.poses.len()).copied().collect();
-        for k in start.len()..self.poses.len() {
-            let pose = match k {
-                0 => self.poses[0],
-                _ => start[k - 1].compose(&self.poses[k - 1].inverse().compose(&self.poses[k])),
-            };
-            start.push(pose);
-        }
-        graph.set_poses(&start);
+        graph.set_poses(&self.extended(warm));
         self.view_solver.optimize(&mut graph)?;
         Ok(graph.poses())
+    }
+
+    /// `view` (an earlier view of the first nodes, or empty) extended to
+    /// every node: each node after it placed from the one before by the
+    /// estimate's own relative pose (the odometry, or a solve's result);
+    /// the estimate itself when `view` is empty.
+    pub fn extended(&self, view: &[Se2]) -> Vec<Se2> {
+        let mut poses: Vec<Se2> = view.iter().take(self.poses.len()).copied().collect();
+        for k in poses.len()..self.poses.len() {
+            let pose = match k {
+                0 => self.poses[0],
+                _ => poses[k - 1].compose(&self.poses[k - 1].inverse().compose(&self.poses[k])),
+            };
+            poses.push(pose);
+        }
+        poses
     }
 
     /// The final batch solve with `backend.solver`; returns the optimised

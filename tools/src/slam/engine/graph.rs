@@ -2,7 +2,7 @@
 //! odometry and sequential edges, its loop closures, and the incremental
 //! solves they trigger.
 
-use super::solve_schedule::SolveSchedule;
+use super::solve_schedule::{SolveSchedule, view_due};
 use crate::slam::config::SlamConfig;
 use crate::slam::estimate::Estimate;
 use crate::slam::loops::LoopCloser;
@@ -60,9 +60,10 @@ impl<'c> GraphState<'c> {
     /// The current estimate of every node as the engine emits it: with
     /// `emit_solved`, the graph solved with the last node's edges (its
     /// odometry, sequential match and heading prior, and every edge before;
-    /// [`Estimate::solved_view`]); else the estimate, which is solved only
-    /// when the accepted loops change and places a new node by the
-    /// odometry from the one before.
+    /// [`Estimate::solved_view`]; on a long mission every few nodes,
+    /// [`view_due`]); else the estimate, which is solved only when the
+    /// accepted loops change and places a new node by the odometry from
+    /// the one before.
     pub fn emitted_poses(&self) -> &[Se2] {
         if self.emit_solved && self.emitted.len() == self.estimate.len() {
             &self.emitted
@@ -116,6 +117,8 @@ impl<'c> GraphState<'c> {
         if self.emit_solved {
             self.emitted = if self.estimate.incremental_solves > solves_before {
                 self.estimate.poses().to_vec()
+            } else if !view_due(k) {
+                self.estimate.extended(&self.emitted)
             } else {
                 // A failed view is kept with the failed solves (the first
                 // goes into the report) and the estimate's poses are

@@ -16,9 +16,21 @@
 //! What waits: the estimate that gates and places the next candidates, and
 //! the online estimate emitted, lag the accepted loops by at most that
 //! many nodes; the final solve is unaffected.
+//!
+//! The online engine's view (the graph solved with the newest node's
+//! edges, emitted when the estimate itself was not solved at that node)
+//! follows the same rule without a change to wait for: every node below
+//! [`EVERY_CHANGE_NODES`], then every `1 + k / EVERY_CHANGE_NODES`-th
+//! ([`view_due`]); in between, the last view is extended by the
+//! estimate's relative poses.
 
 /// Nodes up to which every change of the accepted loops is solved at once.
 pub const EVERY_CHANGE_NODES: usize = 256;
+
+/// Whether the online view is solved at node `k` (see the module doc).
+pub fn view_due(k: usize) -> bool {
+    k.is_multiple_of(1 + k / EVERY_CHANGE_NODES)
+}
 
 /// The schedule's state.
 #[derive(Clone, Debug, Default)]
@@ -65,6 +77,14 @@ mod tests {
             assert!(s.on_change(k), "retry at node {k}");
             assert!(!s.after_node(k));
         }
+    }
+
+    #[test]
+    fn the_online_view_is_solved_at_every_node_then_every_few() {
+        assert!((0..EVERY_CHANGE_NODES).all(view_due));
+        let k0 = 3 * EVERY_CHANGE_NODES; // interval 4
+        let due: Vec<bool> = (k0..k0 + 8).map(view_due).collect();
+        assert_eq!(due, [true, false, false, false, true, false, false, false]);
     }
 
     #[test]
