@@ -77,9 +77,8 @@ pub struct RotationConfig {
     /// `crate::nodes::spacing`); the others are dropped. 0 makes every
     /// rotation a node; whatever the spacing, at most
     /// `nodes::spacing::MAX_THINNED_IN_A_ROW` rotations in a row are
-    /// dropped. Default 2 m (the choice and its measurements:
-    /// EXPERIMENTS.md § Long missions, "The node spacing as `run`'s
-    /// default").
+    /// dropped. Default 2 m (why: EXPERIMENTS.md § Long missions, "The
+    /// node spacing as `run`'s default").
     pub node_spacing_m: f64,
 }
 

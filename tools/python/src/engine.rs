@@ -9,7 +9,6 @@ use echofield_frontend::sensors::{
     Attitude, DvlVelocity, GroundTruthPose, SensorMounting, SonarBeam,
 };
 use echofield_graph::Se2;
-use echofield_graph::io::TrajectoryPose;
 use nalgebra::{Matrix3, Vector3};
 use numpy::{PyArray2, PyReadonlyArray1};
 use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
@@ -50,8 +49,6 @@ self_cell::self_cell!(
 #[pyclass(module = "echofield")]
 pub struct Engine {
     cell: EngineCell,
-    /// Every emitted node's estimate as emitted.
-    emitted: Vec<TrajectoryPose>,
     /// Set once a push failed or `finish` ran.
     closed: Option<&'static str>,
 }
@@ -81,18 +78,10 @@ impl Engine {
         }
     }
 
-    /// The events as a list of dicts, remembering each estimate.
-    fn events<'py>(
-        &mut self,
-        py: Python<'py>,
-        events: Vec<NodeEvent>,
-    ) -> PyResult<Bound<'py, PyList>> {
+    /// The events as a list of dicts.
+    fn events<'py>(&self, py: Python<'py>, events: Vec<NodeEvent>) -> PyResult<Bound<'py, PyList>> {
         let list = PyList::empty(py);
         for event in events {
-            self.emitted.push(TrajectoryPose {
-                stamp_s: event.stamp_s,
-                pose: event.pose,
-            });
             let dict = PyDict::new(py);
             dict.set_item("node_id", event.node_id)?;
             dict.set_item("rotation_index", event.rotation_index)?;
@@ -137,11 +126,7 @@ impl Engine {
             SlamEngine::new(config, name, mounting).map(Some)
         })
         .map_err(crate::py_err)?;
-        Ok(Self {
-            cell,
-            emitted: Vec::new(),
-            closed: None,
-        })
+        Ok(Self { cell, closed: None })
     }
 
     /// Takes the next sonar beam: its stamp (s), transducer angle in the
@@ -280,7 +265,7 @@ impl Engine {
             .cell
             .with_dependent_mut(|_, engine| engine.take().map(|e| e.finish(&ground_truth)));
         match output {
-            Some(Ok(output)) => RunResult::new(py, &output, Some(&self.emitted), None),
+            Some(Ok(output)) => RunResult::new(py, &output, None),
             Some(Err(error)) => Err(crate::py_err(error)),
             None => Err(PyRuntimeError::new_err("the engine is closed")),
         }

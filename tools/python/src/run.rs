@@ -9,7 +9,6 @@ use echofield::slam::outputs::{FOLDER_FILES, write_output_files};
 use echofield::slam::{NoProgress, RunInfo, SlamConfig, SlamOutput, load_mission};
 use echofield_frontend::sensors::Mission as RustMission;
 use echofield_graph::Se2;
-use echofield_graph::io::TrajectoryPose;
 use numpy::PyArray1;
 use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
@@ -100,7 +99,7 @@ pub fn run(
             )
         })
         .map_err(crate::to_py_err)?;
-    RunResult::new(py, &output_slam, output_slam.emitted.as_deref(), output)
+    RunResult::new(py, &output_slam, output)
 }
 
 /// The run, and its outputs written into `output` when given (the folder
@@ -213,7 +212,6 @@ impl RunResult {
     pub(crate) fn new(
         py: Python<'_>,
         slam: &SlamOutput,
-        emitted: Option<&[TrajectoryPose]>,
         output: Option<PathBuf>,
     ) -> PyResult<Self> {
         let nodes = &slam.nodes;
@@ -224,7 +222,7 @@ impl RunResult {
             Some(gt) => stamped_array(py, gt.iter().copied())?.into_any().unbind(),
             None => py.None(),
         };
-        let emitted = match emitted {
+        let emitted = match &slam.emitted {
             Some(e) => stamped_array(py, e.iter().map(|p| (p.stamp_s, p.pose)))?
                 .into_any()
                 .unbind(),

@@ -82,6 +82,7 @@ use echofield_frontend::rotation::Rotation;
 use echofield_frontend::sensors::{Attitude, DvlVelocity, SensorMounting, SonarBeam};
 use echofield_frontend::warnings::Warnings;
 use echofield_graph::Se2;
+use echofield_graph::io::TrajectoryPose;
 use graph::GraphState;
 use navigation::NavigationSource;
 use rayon::prelude::*;
@@ -137,7 +138,9 @@ pub struct SlamEngine<'c> {
     /// Which ready rotations become nodes (`rotation.node_spacing_m`).
     spacing: NodeSpacing,
     skipped: Vec<SkippedRotation>,
-    latencies_s: Vec<f64>,
+    /// Online: each node's estimate as it was emitted (the output's
+    /// `emitted`); `None` in batch.
+    emitted: Option<Vec<TrajectoryPose>>,
     /// Dead reckoning and node building so far (the other stages are
     /// timed by [`GraphState`]).
     timings: StageTimings,
@@ -210,7 +213,7 @@ impl<'c> SlamEngine<'c> {
             graph: GraphState::new(config, emit_solved)?,
             spacing: NodeSpacing::new(config.rotation.node_spacing_m),
             skipped: Vec::new(),
-            latencies_s: Vec::new(),
+            emitted: emit_solved.then(Vec::new),
             timings: StageTimings::default(),
             input: EngineInput {
                 intensity: IntensityReport {
@@ -402,9 +405,14 @@ impl<'c> SlamEngine<'c> {
         };
         self.graph.add(node, navigation)?;
         let latency_s = build_s + t.elapsed().as_secs_f64();
-        self.latencies_s.push(latency_s);
         let poses = self.graph.emitted_poses().to_vec();
         let node_id = poses.len() - 1;
+        if let Some(track) = &mut self.emitted {
+            track.push(TrajectoryPose {
+                stamp_s: rotation.reference_stamp_s,
+                pose: poses[node_id],
+            });
+        }
         Ok(Some(NodeEvent {
             node_id,
             rotation_index: rotation.index,

@@ -9,26 +9,20 @@ use crate::eval::{Alignment, ate};
 use echofield_frontend::sensors::Mission;
 use echofield_graph::io::TrajectoryPose;
 
-/// Runs `mission` through [`run_mission_online`]; the output's `emitted`
-/// holds each node's estimate as it was emitted and its report's `online`
-/// their ATE and the work per rotation. Errors as [`super::run_mission`].
+/// Runs `mission` through [`run_mission_online`]: the output's `emitted`
+/// holds each node's estimate as it was emitted (the engine keeps it), its
+/// report's `online` their ATE and the work per rotation. Errors as
+/// [`super::run_mission`].
 pub fn run_online(
     mission: &Mission,
     config: &SlamConfig,
     progress: &dyn ProgressSink,
 ) -> Result<SlamOutput, SlamError> {
-    let mut emitted = Vec::new();
     let mut latencies_s = Vec::new();
-    let mut on_event = |event: NodeEvent| {
-        emitted.push(TrajectoryPose {
-            stamp_s: event.stamp_s,
-            pose: event.pose,
-        });
-        latencies_s.push(event.latency_s);
-    };
+    let mut on_event = |event: NodeEvent| latencies_s.push(event.latency_s);
     let mut output = run_mission_online(mission, config, progress, &mut on_event)?;
-    output.report.online = Some(online_report(&output, &emitted, &mut latencies_s));
-    output.emitted = Some(emitted);
+    let emitted = output.emitted.as_deref().unwrap_or_default();
+    output.report.online = Some(online_report(&output, emitted, &mut latencies_s));
     Ok(output)
 }
 

@@ -32,14 +32,14 @@ impl<'c> SlamEngine<'c> {
     /// which took `final_solve_s`), with the warnings of the finish.
     /// Errors when the navigation cannot be finished.
     pub(super) fn output(
-        self,
+        mut self,
         graph: PoseGraph,
         summary: RobustSolveSummary,
         final_solve_s: f64,
         finish_warnings: Warnings,
         ground_truth: &[GroundTruthPose],
     ) -> Result<SlamOutput, SlamError> {
-        let (started, config) = (self.started, self.config);
+        let (started, config, emitted) = (self.started, self.config, self.emitted.take());
         let (mut run, extras) = self.finished(graph, summary, final_solve_s, finish_warnings)?;
         let mut report = unevaluated_report(&run, extras);
         let dead_reckoning = evaluate_run(
@@ -72,7 +72,7 @@ impl<'c> SlamEngine<'c> {
             scans,
             images,
             image_config: config.image.clone(),
-            emitted: None,
+            emitted,
         })
     }
 
