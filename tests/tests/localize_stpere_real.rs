@@ -113,9 +113,9 @@ fn the_second_half_of_real_st_pere_localises_on_the_first_halfs_map() {
         rotations.len() - converged,
         report.rotations_far_from_map
     );
-    // The 1.0 m on the fitted ATE; a conservative bound through
-    // the map's fit, which carries the map run's own error (EXPERIMENTS.md
-    // gives the figures). The filter beats dead reckoning, converges
+    // The 1.0 m, through the map's fit (which carries the map
+    // run's own error) and fitted (EXPERIMENTS.md gives the figures and
+    // their spread over the map's yaw). The filter beats dead reckoning, converges
     // early and stays localised or coasting through the part of the route
     // that lies far from the map.
     assert!(converged < 10, "converged at rotation {converged}");
@@ -123,7 +123,7 @@ fn the_second_half_of_real_st_pere_localises_on_the_first_halfs_map() {
         ate < dead_reckoning,
         "ATE {ate} m, dead reckoning {dead_reckoning} m"
     );
-    assert!(ate < 1.5, "ATE {ate} m");
+    assert!(ate <= 1.0, "ATE {ate} m");
     assert!(ate_fitted <= 1.0, "fitted ATE {ate_fitted} m");
     // The refined estimate (the default) does not undo what the particles'
     // mean achieves on real data: within 5 cm of it either way of

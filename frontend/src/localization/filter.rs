@@ -14,9 +14,10 @@
 //!    the heading units' biases).
 //! 3. **Judge**: the scan's fit and coverage at the weighted mean and the
 //!    cloud's spread set the state ([`LocalizationState`]); the estimate is
-//!    the weighted mean, by default refined to the nearest peak of the
-//!    scan's score on the map when localised ([`super::refine`], on the
-//!    field's refine raster, [`LikelihoodField::refine_score`]).
+//!    the weighted mean, by default refined when localised to the mode of
+//!    the posterior near it: the scan's log-weight of step 2 plus the
+//!    predicted cloud of step 1 as a Gaussian prior ([`super::refine`], on
+//!    the field's refine raster, [`LikelihoodField::refine_score`]).
 //! 4. **Resample** by KLD sampling ([`super::particles::kld_resample`]);
 //!    when the scans have stopped fitting a converged cloud for
 //!    `lost_after_rotations` rotations, the particles are spread over the
@@ -27,7 +28,7 @@
 //! ([`MonteCarloLocalizer::start_at`]).
 
 use super::field::LikelihoodField;
-use super::particles::{Belief, KldBounds, Particle, belief, kld_resample, set_weights};
+use super::particles::{Belief, KldBounds, Particle, belief, gaussian, kld_resample, set_weights};
 use super::refine::RefineProblem;
 use super::{Estimate, LocalizationConfig};
 use crate::error::FrontendError;
@@ -255,11 +256,16 @@ impl MonteCarloLocalizer {
         points: &[Point2<f64>],
     ) -> LocalizationStep {
         let mut reseeded = false;
+        let mut prior = None;
         if self.particles.is_empty() {
             self.seed_global(heading_rad);
             reseeded = true;
         } else if let Some((relative, covariance)) = motion {
             self.predict(relative, covariance);
+            // The predicted cloud is the refinement's prior (step 3); a
+            // degenerate one (every particle on one pose) gives none.
+            prior = gaussian(&self.particles)
+                .and_then(|(mean, covariance)| Some((mean, covariance.try_inverse()?)));
         }
         let stride = points.len().div_ceil(self.config.max_scan_points).max(1);
         let scored = points.len() >= MIN_SCAN_POINTS;
@@ -273,7 +279,7 @@ impl MonteCarloLocalizer {
             .score(&b.mean, points, stride, self.config.unknown_value);
         let lost = self.judge(&b, scored, at_mean.fit, at_mean.coverage);
         let sees_map = scored && at_mean.coverage >= self.config.min_coverage;
-        let estimate = self.estimate(&b, sees_map, heading_rad, points, stride);
+        let estimate = self.estimate(&b, sees_map, heading_rad, points, stride, prior);
         if lost {
             self.seed_global(heading_rad);
             reseeded = true;
@@ -327,6 +333,7 @@ impl MonteCarloLocalizer {
         heading_rad: f64,
         points: &[Point2<f64>],
         stride: usize,
+        prior: Option<(Se2, Matrix3<f64>)>,
     ) -> Se2 {
         let c = &self.config;
         match c.estimate {
@@ -345,6 +352,7 @@ impl MonteCarloLocalizer {
                 heading_rad,
                 heading_sigma_rad: c.global_heading_sigma_rad,
                 max_shift_m: c.refine_max_shift_m,
+                prior,
             }
             .refine(&b.mean),
             Estimate::Refined => b.mean,

@@ -7,6 +7,7 @@
 //! concentrated.
 
 use echofield_graph::{Se2, wrap_angle};
+use nalgebra::{Matrix3, Vector3};
 use std::collections::HashSet;
 
 /// One hypothesis of the vehicle's `world_from_vehicle` (map frame) and
@@ -58,6 +59,27 @@ pub fn belief(particles: &[Particle]) -> Belief {
         spread_m: variance.max(0.0).sqrt(),
         heading_spread_rad: (-2.0 * r.ln()).max(0.0).sqrt(),
     }
+}
+
+/// The weighted mean and covariance of `particles` in `(x, y, θ)` (world
+/// frame, m and rad; headings unwrapped about the circular mean): the
+/// Gaussian that stands for the cloud as a prior. `None` for fewer than
+/// two particles.
+pub fn gaussian(particles: &[Particle]) -> Option<(Se2, Matrix3<f64>)> {
+    if particles.len() < 2 {
+        return None;
+    }
+    let mean = belief(particles).mean;
+    let mut covariance = Matrix3::zeros();
+    for p in particles {
+        let d = Vector3::new(
+            p.pose.x() - mean.x(),
+            p.pose.y() - mean.y(),
+            wrap_angle(p.pose.theta() - mean.theta()),
+        );
+        covariance += p.weight * d * d.transpose();
+    }
+    Some((mean, covariance))
 }
 
 /// Sets the weights of `particles` from their log-weights (the largest
@@ -174,6 +196,32 @@ mod tests {
             bin_m: 0.5,
             bin_rad: 0.1745,
         }
+    }
+
+    #[test]
+    fn the_gaussian_of_a_cloud_is_its_weighted_mean_and_covariance() {
+        // Two equally weighted particles at (±1, 0, ±0.1) and one of no
+        // weight far away: mean at the origin, variances 1 (x) and 0.01
+        // (θ), covariance of x and θ 0.1, nothing in y.
+        let cloud = [
+            Particle {
+                pose: Se2::new(1.0, 0.0, 0.1),
+                weight: 0.5,
+            },
+            Particle {
+                pose: Se2::new(-1.0, 0.0, -0.1),
+                weight: 0.5,
+            },
+            Particle {
+                pose: Se2::new(50.0, 50.0, 3.0),
+                weight: 0.0,
+            },
+        ];
+        let (mean, covariance) = gaussian(&cloud).unwrap();
+        assert!(mean.translation().norm() < 1e-12 && mean.theta().abs() < 1e-12);
+        let expected = Matrix3::new(1.0, 0.0, 0.1, 0.0, 0.0, 0.0, 0.1, 0.0, 0.01);
+        assert!((covariance - expected).norm() < 1e-12, "{covariance}");
+        assert!(gaussian(&cloud[..1]).is_none());
     }
 
     #[test]

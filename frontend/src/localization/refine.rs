@@ -1,7 +1,15 @@
 //! The estimate refined on the map: from the particles' weighted mean, the
 //! pose that maximises the scan's score on the likelihood field (eq. 6,
 //! `x* = argmax_x s(x)`, with `s` of eq. 5 on the field), plus the
-//! compass term the particles are weighed with.
+//! compass term the particles are weighed with and, when given, the
+//! predicted cloud as a Gaussian prior: the mode of the filter's own
+//! posterior, `argmax_x gain·s̄(x) − ½(θ − θ_c)²/σ_θ² − ½ dᵀ Ω d`, `d` the
+//! offset from the prior's mean and `Ω` its information.
+//!
+//! Why the prior: along a straight quay the score is flat (every shift
+//! along it fits as well), and its peak there is wherever the field's
+//! small ripples put it, up to `max_shift_m` away; the motion says where
+//! along the quay the vehicle is, as it does for the particles' weights.
 //!
 //! Why: the weighted mean of a cloud of a thousand particles scatters
 //! about the score's peak by the particles' spacing and the noise the
@@ -24,7 +32,7 @@ use super::field::LikelihoodField;
 use argmin::core::{CostFunction, Error, Executor, State};
 use argmin::solver::neldermead::NelderMead;
 use echofield_graph::{Se2, wrap_angle};
-use nalgebra::{Point2, Vector3};
+use nalgebra::{Matrix3, Point2, Vector3};
 
 /// Side of the initial simplex along each scaled axis, m.
 const SIMPLEX_STEP_M: f64 = 0.1;
@@ -56,6 +64,10 @@ pub struct RefineProblem<'a> {
     pub heading_sigma_rad: f64,
     /// Largest distance of the result from the start, m (> 0).
     pub max_shift_m: f64,
+    /// The predicted cloud as a Gaussian prior: its mean and information
+    /// matrix in `(x, y, θ)` (world frame). With it the result is the
+    /// posterior's mode, not the score's peak alone.
+    pub prior: Option<(Se2, Matrix3<f64>)>,
 }
 
 impl RefineProblem<'_> {
@@ -68,7 +80,15 @@ impl RefineProblem<'_> {
             .field
             .refine_score(pose, self.points, self.stride, self.unknown);
         let dh = wrap_angle(pose.theta() - self.heading_rad);
-        self.gain * s.mean - dh * dh / (2.0 * self.heading_sigma_rad.powi(2))
+        let prior = self.prior.as_ref().map_or(0.0, |(mean, information)| {
+            let d = Vector3::new(
+                pose.x() - mean.x(),
+                pose.y() - mean.y(),
+                wrap_angle(pose.theta() - mean.theta()),
+            );
+            0.5 * d.dot(&(information * d))
+        });
+        self.gain * s.mean - dh * dh / (2.0 * self.heading_sigma_rad.powi(2)) - prior
     }
 
     /// The pose near `start` with the largest [`Self::log_weight`] (see
@@ -200,6 +220,7 @@ mod tests {
             heading_rad,
             heading_sigma_rad: 0.26,
             max_shift_m,
+            prior: None,
         }
     }
 
@@ -252,6 +273,36 @@ mod tests {
         let refined = problem.refine(&truth);
         assert!((refined.x() - 0.25).abs() < 0.08, "{refined:?}");
         assert!(refined.y().abs() < 0.08, "{refined:?}");
+    }
+
+    #[test]
+    fn along_a_wall_the_prior_says_where_and_the_scan_how_far_from_it() {
+        // The scan sees only the middle of the wall x = 2.125, so its score
+        // is flat along y; the prior at the truth with 0.1 m and 0.01 rad
+        // standard deviations holds the estimate there along the wall,
+        // while the scan pulls it onto the wall across.
+        let truth = Se2::identity();
+        let (field, scan) = field_and_scan(&truth);
+        let wall: Vec<Point2<f64>> = scan
+            .into_iter()
+            .filter(|p| (p.x - 2.125).abs() < 1e-9 && p.y.abs() < 2.0)
+            .collect();
+        assert!(wall.len() > 10);
+        let start = Se2::new(0.3, 0.4, 0.0);
+        let mut problem = test_problem(&field, wall.as_slice(), 0.0, 1.0);
+        let free = problem.refine(&start);
+        assert!(free.x().abs() < 0.08, "{free:?}");
+        assert!(
+            free.y() > 0.2,
+            "the flat score alone moved along the wall: {free:?}"
+        );
+        problem.prior = Some((
+            Se2::identity(),
+            Matrix3::from_diagonal(&Vector3::new(100.0, 100.0, 1e4)),
+        ));
+        let held = problem.refine(&start);
+        assert!(held.x().abs() < 0.08, "{held:?}");
+        assert!(held.y().abs() < 0.1, "{held:?}");
     }
 
     #[test]
