@@ -6,7 +6,7 @@
 //! and `finish()` the same as `run_mission` on the same input.
 
 use echofield::eval::{Alignment, ate};
-use echofield::slam::online::run_online;
+use echofield::slam::online::{run_online, run_online_taking_beams};
 use echofield::slam::outputs::write_outputs;
 use echofield::slam::{
     NoProgress, NodeEvent, SlamConfig, SlamEngine, run_mission, run_mission_online,
@@ -278,6 +278,27 @@ fn taking_the_beams_gives_the_result_of_run_mission() {
         assert_eq!(taken.sequential, borrowed.sequential);
         assert_eq!(taken.report.ate_rmse_m, borrowed.report.ate_rmse_m);
     }
+}
+
+/// `run_online_taking_beams` (what `echofield run --online` and
+/// `bench-long --online` use) gives `run_online`'s result, the estimates
+/// it emitted included, and leaves the mission without its beams.
+#[test]
+fn taking_the_beams_online_gives_the_result_of_run_online() {
+    let config = SlamConfig::default();
+    let borrowed = run_online(marina(), &config, &NoProgress).unwrap();
+    let mut mission = marina().clone();
+    let taken = run_online_taking_beams(&mut mission, &config, &NoProgress).unwrap();
+    assert!(mission.beams.is_empty());
+    assert_eq!(mission.dvl, marina().dvl);
+    assert!(borrowed.nodes.len() >= 15, "{} nodes", borrowed.nodes.len());
+    assert_eq!(taken.nodes, borrowed.nodes);
+    assert_eq!(taken.emitted, borrowed.emitted);
+    assert_eq!(taken.graph.poses(), borrowed.graph.poses());
+    assert_eq!(taken.loops, borrowed.loops);
+    let ate = |o: &echofield::slam::SlamOutput| o.report.online.as_ref().map(|r| r.ate_rmse_m);
+    assert_eq!(ate(&taken), ate(&borrowed));
+    assert!(ate(&taken).flatten().is_some());
 }
 
 /// Records out of order: going back in time within a stream is an error

@@ -5,6 +5,13 @@ mod cmd;
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
+/// The program's allocator. With glibc's malloc the memory that the worker
+/// threads free stays in their arenas, so the resident memory of a long run
+/// grows well beyond what it holds (EXPERIMENTS.md § Long missions, "The
+/// allocator"); mimalloc gives freed pages back to the system.
+#[global_allocator]
+static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 /// Scan-based pose-graph SLAM for underwater vehicles with a mechanically
 /// scanned imaging sonar (MSIS), DVL and heading.
 #[derive(Debug, Parser)]

@@ -4,8 +4,9 @@
 //! (`echofield run` and `bench-long` call [`run_mission_taking_beams`],
 //! the same run with the beams moved into the nodes, not copied); it replays the mission, record by record in
 //! time order, through the [`SlamEngine`] ([`engine`]), which is also
-//! what an online user pushes samples into ([`run_mission_online`],
-//! `echofield run M.mcap --online --output DIR`). Per completed rotation:
+//! what an online user pushes samples into ([`run_mission_online`];
+//! `echofield run M.mcap --online --output DIR` calls
+//! [`run_mission_online_taking_beams`]). Per completed rotation:
 //!
 //! 1. **Dead reckoning** (EKF over DVL and heading, [`dead_reckoning`](echofield_frontend::dead_reckoning)):
 //!    the causal filter online, the navigation computed beforehand over
@@ -77,7 +78,10 @@ pub use config::{BackendConfig, EvaluationConfig, SequentialConfig, SlamConfig};
 pub use engine::{NodeEvent, SlamEngine};
 pub use error::SlamError;
 pub use node_record::NodeRecord;
-pub use pipeline::{replay, run_mission, run_mission_online, run_mission_taking_beams};
+pub use pipeline::{
+    replay, run_mission, run_mission_online, run_mission_online_taking_beams,
+    run_mission_taking_beams,
+};
 pub use result::{
     IntensityReport, OnlineReport, RecallBin, RecallBudget, Report, RunInfo, SlamOutput,
     StageTimings,

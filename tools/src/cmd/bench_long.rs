@@ -2,6 +2,7 @@
 //! rotations of a mission (issue 36, "long missions").
 
 use anyhow::{Context, Result, bail};
+use echofield::slam::online::run_online_taking_beams;
 use echofield::slam::outputs::write_outputs;
 use echofield::slam::{NoProgress, SlamConfig, load_mission, run_mission_taking_beams};
 use echofield_datasets::mcap::write_mission;
@@ -22,6 +23,10 @@ Examples:
   # as the default `run`
   echofield bench-long --output out/bench-long --cover-spacing-m 0 --node-spacing-m 0
 
+  # The runs online, as `run --online`: the ATE of the estimates as they
+  # were emitted and the work per rotation are added to the table
+  echofield bench-long --output out/bench-long --online
+
 The simulated marina is surveyed along the same route at each cruise speed
 ([vehicle] cruise_speed_mps of the simulator), so slower missions see the
 same quays with more rotations. The runs sparsify loops with
@@ -36,8 +41,10 @@ Linux; unlike the wall time, hardly changed by other programs on a
 loaded machine), reading and writing included, are reported
 with the run's loop candidates, accepted loops, node images built again
 after the memory budget released them, and ATE (dead reckoning's in
-brackets). The last line compares the largest mission's times with the
-smallest's.";
+brackets); with --online each run goes through the causal engine as
+`run --online` does, and the table adds the ATE of the emitted estimates
+and the latency per rotation (p50 / p95 / max). The last line compares
+the largest mission's times with the smallest's.";
 
 #[derive(Debug, clap::Args)]
 #[command(after_help = EXAMPLES)]
@@ -62,6 +69,11 @@ pub struct Args {
     /// it replaces the config's. 0 makes every rotation a node.
     #[arg(long, default_value_t = 2.0)]
     pub node_spacing_m: f64,
+    /// Run each mission online (`run --online`: causal, each node emitted
+    /// as its rotation completes) and add the emitted estimates' ATE and
+    /// the latency per rotation to the table.
+    #[arg(long)]
+    pub online: bool,
     /// Internal: run this mission in this process and print its peak
     /// memory (the parent's child process).
     #[arg(long, hide = true)]
@@ -81,6 +93,14 @@ struct Row {
     peak_mb: Option<f64>,
     ate_m: Option<f64>,
     ate_dr_m: Option<f64>,
+    /// With `--online`: the emitted estimates' ATE and the latency per
+    /// rotation p50, p95, max (ms), from `report.json` → `online`.
+    online: Option<OnlineFigures>,
+}
+
+struct OnlineFigures {
+    ate_m: Option<f64>,
+    latency_ms: [f64; 3],
 }
 
 pub fn run(args: Args) -> Result<()> {
@@ -93,31 +113,12 @@ pub fn run(args: Args) -> Result<()> {
     std::fs::create_dir_all(&args.output)
         .with_context(|| format!("cannot create folder {}", args.output.display()))?;
     let mut rows = Vec::new();
-    println!(
-        "| cruise speed (m/s) | rotations | nodes | loop candidates | loops accepted | images rebuilt | time (s) | CPU time (s) | peak memory (MB) | ATE (DR) (m) |"
-    );
-    println!("|---|---|---|---|---|---|---|---|---|---|");
+    print_header(args.online);
     for &speed in &args.speeds {
         let mission = args.output.join(format!("marina-{speed}.mcap"));
         simulate(speed, args.seed, &mission)?;
         let row = measure(speed, &mission, &args)?;
-        let show = |v: Option<f64>, digits: usize| {
-            v.map_or_else(|| "n/a".to_string(), |v| format!("{v:.digits$}"))
-        };
-        println!(
-            "| {} | {} | {} | {} | {} | {} | {:.1} | {} | {} | {} ({}) |",
-            row.speed_mps,
-            row.rotations,
-            row.nodes,
-            row.candidates,
-            row.accepted,
-            row.rebuilt,
-            row.time_s,
-            show(row.cpu_s, 1),
-            show(row.peak_mb, 0),
-            show(row.ate_m, 3),
-            show(row.ate_dr_m, 2)
-        );
+        print_row(&row);
         rows.push(row);
     }
     if let (Some(first), Some(last)) = (rows.first(), rows.last())
@@ -135,6 +136,45 @@ pub fn run(args: Args) -> Result<()> {
         );
     }
     Ok(())
+}
+
+fn print_header(online: bool) {
+    let (extra, rule) = if online {
+        (
+            " online ATE (m) | latency p50 / p95 / max (ms) |",
+            "---|---|",
+        )
+    } else {
+        ("", "")
+    };
+    println!(
+        "| cruise speed (m/s) | rotations | nodes | loop candidates | loops accepted | images rebuilt | time (s) | CPU time (s) | peak memory (MB) | ATE (DR) (m) |{extra}"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|---|{rule}");
+}
+
+fn print_row(row: &Row) {
+    let show = |v: Option<f64>, digits: usize| {
+        v.map_or_else(|| "n/a".to_string(), |v| format!("{v:.digits$}"))
+    };
+    let online = row.online.as_ref().map_or(String::new(), |o| {
+        let [p50, p95, max] = o.latency_ms;
+        format!(" {} | {p50:.1} / {p95:.1} / {max:.1} |", show(o.ate_m, 3))
+    });
+    println!(
+        "| {} | {} | {} | {} | {} | {} | {:.1} | {} | {} | {} ({}) |{online}",
+        row.speed_mps,
+        row.rotations,
+        row.nodes,
+        row.candidates,
+        row.accepted,
+        row.rebuilt,
+        row.time_s,
+        show(row.cpu_s, 1),
+        show(row.peak_mb, 0),
+        show(row.ate_m, 3),
+        show(row.ate_dr_m, 2)
+    );
 }
 
 /// The marina at `speed_mps`, written to `path`.
@@ -164,6 +204,9 @@ fn measure(speed_mps: f64, mission: &Path, args: &Args) -> Result<Row> {
         .arg(args.node_spacing_m.to_string());
     if let Some(config) = &args.config {
         command.arg("--config").arg(config);
+    }
+    if args.online {
+        command.arg("--online");
     }
     let start = Instant::now();
     let result = command
@@ -203,11 +246,25 @@ fn measure(speed_mps: f64, mission: &Path, args: &Args) -> Result<Row> {
         peak_mb,
         ate_m: report["ate_rmse_m"].as_f64(),
         ate_dr_m: report["ate_rmse_dead_reckoning_m"].as_f64(),
+        online: online_figures(&report["online"]),
+    })
+}
+
+/// `report.json` → `online` of a `--online` run; `None` for a batch run.
+fn online_figures(online: &serde_json::Value) -> Option<OnlineFigures> {
+    let ms = |key: &str| online[key].as_f64();
+    Some(OnlineFigures {
+        ate_m: online["ate_rmse_m"].as_f64(),
+        latency_ms: [
+            ms("latency_p50_ms")?,
+            ms("latency_p95_ms")?,
+            ms("latency_max_ms")?,
+        ],
     })
 }
 
 /// The child: runs the pipeline on `mission` with `config` and the
-/// sparsification spacings of `args`, writes the outputs to `output` and
+/// sparsification spacings of `args` (online with `--online`), writes the outputs to `output` and
 /// prints `peak_kb N`, its peak resident memory, and `cpu_s T`, its CPU
 /// time.
 fn run_child(mission_path: &Path, output: &Path, config: Option<&Path>, args: &Args) -> Result<()> {
@@ -215,8 +272,12 @@ fn run_child(mission_path: &Path, output: &Path, config: Option<&Path>, args: &A
     config.loops.cover_spacing_m = args.cover_spacing_m;
     config.rotation.node_spacing_m = args.node_spacing_m;
     let mut mission = load_mission(mission_path)?;
-    let result = run_mission_taking_beams(&mut mission, &config, &NoProgress)
-        .with_context(|| format!("SLAM on {} failed", mission_path.display()))?;
+    let result = if args.online {
+        run_online_taking_beams(&mut mission, &config, &NoProgress)
+    } else {
+        run_mission_taking_beams(&mut mission, &config, &NoProgress)
+    }
+    .with_context(|| format!("SLAM on {} failed", mission_path.display()))?;
     write_outputs(output, &result, &mission)?;
     if let Some(kb) = peak_resident_kb() {
         println!("peak_kb {kb}");

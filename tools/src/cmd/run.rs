@@ -5,7 +5,7 @@
 
 use anyhow::{Context, Result};
 use echofield::output::folder::OutputFolder;
-use echofield::slam::online::run_online;
+use echofield::slam::online::run_online_taking_beams;
 use echofield::slam::outputs::{FOLDER_FILES, write_output_files};
 use echofield::slam::result::Report;
 use echofield::slam::{
@@ -171,7 +171,7 @@ pub fn run(args: Args) -> Result<()> {
     let progress = BarProgress::new();
     let failed = || format!("SLAM on {} failed", args.mission.display());
     let mut output = if args.online {
-        run_online(&mission, &config, &progress).with_context(failed)?
+        run_online_taking_beams(&mut mission, &config, &progress).with_context(failed)?
     } else {
         run_mission_taking_beams(&mut mission, &config, &progress).with_context(failed)?
     };

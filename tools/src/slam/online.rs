@@ -4,7 +4,10 @@
 
 use super::evaluation::MAX_TIME_DIFF_S;
 use super::result::{OnlineReport, SlamOutput};
-use super::{NodeEvent, ProgressSink, SlamConfig, SlamError, run_mission_online};
+use super::{
+    NodeEvent, ProgressSink, SlamConfig, SlamError, run_mission_online,
+    run_mission_online_taking_beams,
+};
 use crate::eval::{Alignment, ate};
 use echofield_frontend::sensors::Mission;
 use echofield_graph::io::TrajectoryPose;
@@ -18,9 +21,30 @@ pub fn run_online(
     config: &SlamConfig,
     progress: &dyn ProgressSink,
 ) -> Result<SlamOutput, SlamError> {
+    with_online_report(|on_event| run_mission_online(mission, config, progress, on_event))
+}
+
+/// [`run_online`] with the beams moved out of `mission` into the engine
+/// ([`run_mission_online_taking_beams`]; `mission.beams` is empty
+/// afterwards): the same outputs, and the memory an engine on a vehicle
+/// holds. What `echofield run --online` uses.
+pub fn run_online_taking_beams(
+    mission: &mut Mission,
+    config: &SlamConfig,
+    progress: &dyn ProgressSink,
+) -> Result<SlamOutput, SlamError> {
+    with_online_report(|on_event| {
+        run_mission_online_taking_beams(mission, config, progress, on_event)
+    })
+}
+
+/// Runs `run` with an event callback that times the rotations, then adds
+/// the report's `online` section.
+fn with_online_report(
+    run: impl FnOnce(&mut dyn FnMut(NodeEvent)) -> Result<SlamOutput, SlamError>,
+) -> Result<SlamOutput, SlamError> {
     let mut latencies_s = Vec::new();
-    let mut on_event = |event: NodeEvent| latencies_s.push(event.latency_s);
-    let mut output = run_mission_online(mission, config, progress, &mut on_event)?;
+    let mut output = run(&mut |event: NodeEvent| latencies_s.push(event.latency_s))?;
     let emitted = output.emitted.as_deref().unwrap_or_default();
     output.report.online = Some(online_report(&output, emitted, &mut latencies_s));
     Ok(output)

@@ -1,5 +1,5 @@
-//! [`run_mission`], [`run_mission_taking_beams`] and
-//! [`run_mission_online`]: a recorded mission prepared
+//! [`run_mission`], [`run_mission_taking_beams`], [`run_mission_online`]
+//! and [`run_mission_online_taking_beams`]: a recorded mission prepared
 //! (mounting, screening, intensity scale) and replayed, record by record in
 //! time order, through the [`SlamEngine`].
 
@@ -59,7 +59,22 @@ pub fn run_mission_taking_beams(
     config: &SlamConfig,
     progress: &dyn ProgressSink,
 ) -> Result<SlamOutput, SlamError> {
-    let result = run_taking_beams(mission, config, progress);
+    let result = run_taking_beams(mission, config, progress, None);
+    progress.finish();
+    result
+}
+
+/// [`run_mission_online`] with the beams moved out of `mission` as
+/// [`run_mission_taking_beams`] does: what a vehicle's engine holds, not
+/// the recorded mission as well. The outputs and events are those of
+/// [`run_mission_online`]. Errors as [`run_mission`].
+pub fn run_mission_online_taking_beams(
+    mission: &mut Mission,
+    config: &SlamConfig,
+    progress: &dyn ProgressSink,
+    on_event: &mut dyn FnMut(NodeEvent),
+) -> Result<SlamOutput, SlamError> {
+    let result = run_taking_beams(mission, config, progress, Some(on_event));
     progress.finish();
     result
 }
@@ -86,12 +101,13 @@ fn run(
     finish(engine, mission, progress, online, dead_reckoning_s)
 }
 
-/// Batch [`run`] with the beams taken out of `mission` (see
-/// [`run_mission_taking_beams`]).
+/// [`run`] with the beams taken out of `mission` (see
+/// [`run_mission_taking_beams`]); `on_event` given: online, else batch.
 fn run_taking_beams(
     mission: &mut Mission,
     config: &SlamConfig,
     progress: &dyn ProgressSink,
+    on_event: Option<&mut dyn FnMut(NodeEvent)>,
 ) -> Result<SlamOutput, SlamError> {
     config.validate()?;
     let (prepared, config, intensity, warnings) = prepare(mission, config)?;
@@ -105,11 +121,14 @@ fn run_taking_beams(
         mission.beams = Vec::new();
     }
     let mission = prepared.as_mut().unwrap_or(mission);
-    let (mut engine, dead_reckoning_s) = start(mission, config, progress, false)?;
+    let online = on_event.is_some();
+    let (mut engine, dead_reckoning_s) = start(mission, config, progress, online)?;
     engine.set_input_report(intensity, warnings);
     let beams = std::mem::take(&mut mission.beams);
-    replay_beams(mission, beams, &mut engine, progress)?;
-    finish(engine, mission, progress, false, dead_reckoning_s)
+    let mut ignore = |_: NodeEvent| {};
+    let on_event: &mut dyn FnMut(NodeEvent) = on_event.unwrap_or(&mut ignore);
+    replay_beams(mission, beams, &mut engine, progress, on_event)?;
+    finish(engine, mission, progress, online, dead_reckoning_s)
 }
 
 /// The engine for `mission`: causal when `online`, else on the navigation
@@ -172,8 +191,8 @@ pub fn replay(
     replay_records(records, total, engine, progress, on_event, SonarBeam::clone)
 }
 
-/// [`replay`] of a batch run with the mission's beams given apart
-/// (taken out of it, in its order): the same records in the same order
+/// [`replay`] with the mission's beams given apart (taken out of it, in
+/// its order): the same records in the same order
 /// ([`records_with_beams`]), each beam moved into `engine` instead of
 /// copied.
 fn replay_beams(
@@ -181,10 +200,11 @@ fn replay_beams(
     beams: Vec<SonarBeam>,
     engine: &mut SlamEngine<'_>,
     progress: &dyn ProgressSink,
+    on_event: &mut dyn FnMut(NodeEvent),
 ) -> Result<(), SlamError> {
     let total = beams.len();
     let records = records_with_beams(mission, beams);
-    replay_records(records, total, engine, progress, &mut |_| {}, |b| b)
+    replay_records(records, total, engine, progress, on_event, |b| b)
 }
 
 /// Feeds `records` (`total` beams among them) to `engine`, each beam as
