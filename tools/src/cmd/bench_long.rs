@@ -317,6 +317,21 @@ mod tests {
     use super::*;
 
     #[test]
+    fn an_online_report_gives_the_online_columns_and_a_batch_one_none() {
+        let report: serde_json::Value = serde_json::from_str(
+            r#"{"online": {"nodes_emitted": 3, "latency_p50_ms": 1.5,
+                "latency_p95_ms": 2.5, "latency_max_ms": 4.0, "ate_rmse_m": 0.7}}"#,
+        )
+        .unwrap();
+        let online = online_figures(&report["online"]).unwrap();
+        assert_eq!(online.latency_ms, [1.5, 2.5, 4.0]);
+        assert_eq!(online.ate_m, Some(0.7));
+        let batch: serde_json::Value = serde_json::from_str(r#"{"online": null}"#).unwrap();
+        assert!(online_figures(&batch["online"]).is_none());
+        assert!(online_figures(&serde_json::Value::Null).is_none());
+    }
+
+    #[test]
     fn reads_its_own_peak_memory() {
         if cfg!(target_os = "linux") {
             let kb = peak_resident_kb().expect("VmHWM on Linux");
