@@ -120,6 +120,14 @@ pub struct LocalizationStep {
     /// The particles were spread over the whole map after (or, at the
     /// start, before) this rotation.
     pub reseeded: bool,
+    /// What this rotation's scan and compass told the filter, as an
+    /// information matrix in `(x, y, θ)` (world frame, m⁻² and rad⁻²): the
+    /// weighed cloud's information minus the predicted cloud's, negative
+    /// eigenvalues set to 0 (a direction the scan does not see, e.g. along
+    /// a quay, gets none). `None` without a prediction (the first rotation,
+    /// a seeding) or a scan. What the offline smoother takes as a fix, so
+    /// that the motion it also holds is not counted twice.
+    pub scan_information: Option<Matrix3<f64>>,
 }
 
 /// The particle filter (see the module doc).
@@ -274,6 +282,12 @@ impl MonteCarloLocalizer {
         }
         let weighed = self.particles.len();
         let b = belief(&self.particles);
+        let scan_information = match (&prior, gaussian(&self.particles)) {
+            (Some((_, predicted)), Some((_, posterior))) if scored => posterior
+                .try_inverse()
+                .map(|information| positive_part(&(information - predicted))),
+            _ => None,
+        };
         let at_mean = self
             .field
             .score(&b.mean, points, stride, self.config.unknown_value);
@@ -303,6 +317,7 @@ impl MonteCarloLocalizer {
                 0
             },
             reseeded,
+            scan_information,
         }
     }
 
@@ -417,6 +432,13 @@ impl MonteCarloLocalizer {
     }
 }
 
+/// `m` (symmetric) with its negative eigenvalues set to 0.
+fn positive_part(m: &Matrix3<f64>) -> Matrix3<f64> {
+    let mut eigen = m.symmetric_eigen();
+    eigen.eigenvalues.iter_mut().for_each(|l| *l = l.max(0.0));
+    eigen.recompose()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -476,10 +498,17 @@ mod tests {
             let truth = Se2::new(-3.0, 2.0, 0.3).compose(&Se2::new(k as f64, 0.0, 0.0));
             let (_, scan) = map_and_scan(&truth);
             let step = filter.step((k > 0).then_some(&motion), 0.3, &scan);
+            // The seeding has no prediction to tell the scan's share from.
+            assert_eq!(step.scan_information.is_some(), k > 0, "rotation {k}");
             last = Some((step, truth));
         }
         let (step, truth) = last.unwrap();
         assert_eq!(step.state, LocalizationState::Localised, "{step:?}");
+        // Tracking, the scan adds information (positive semi-definite).
+        let information = step.scan_information.unwrap();
+        let eigenvalues = information.symmetric_eigenvalues();
+        assert!(eigenvalues.iter().all(|l| *l >= -1e-9), "{information}");
+        assert!(eigenvalues.max() > 0.0, "{information}");
         let error = (step.estimate.translation() - truth.translation()).norm();
         assert!(error < 0.3, "{error} m: {step:?}");
         assert!(step.particles < 5000, "KLD kept {}", step.particles);

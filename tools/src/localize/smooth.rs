@@ -15,9 +15,15 @@
 //!   `motion_noise_floor_rad`, which also keep it definite).
 //! - **A fix** (a prior) on every rotation whose state is `localised` and
 //!   whose scan fits the map (`fit >= min_fit`): the filter's estimate, with
-//!   an isotropic position covariance of the particles' spread
-//!   (`spread_m² / 2` per axis) plus [`FIX_FLOOR_M`]², and a heading
-//!   variance of the particles' heading spread plus [`FIX_FLOOR_RAD`]².
+//!   the covariance of what that rotation's scan told the filter
+//!   (`LocalizationStep::scan_information`, the weighed cloud's
+//!   information minus the predicted one's: the particles' spread is a
+//!   posterior that holds the motion the odometry edges hold again), plus
+//!   [`FLAT_SIGMA_M`] and [`FLAT_SIGMA_RAD`] as the least information in
+//!   any direction, plus the floors [`FIX_FLOOR_M`]² and [`FIX_FLOOR_RAD`]².
+//!   Where the step has none (after a seeding), an isotropic position
+//!   covariance of the particles' spread (`spread_m² / 2` per axis) and
+//!   their heading spread squared, plus the same floors.
 //!   Coasting, searching and lost rotations get none: the dead reckoning
 //!   carries them between fixes. Each fix has a Cauchy kernel, so that a
 //!   fix far from what the odometry and the other fixes say loses its
@@ -38,7 +44,7 @@
 use super::replay::LocalizedRotation;
 use anyhow::{Context, Result};
 use echofield_backend::{Initialisation, RobustConfig, RobustKernel, SolverConfig, optimize};
-use echofield_frontend::localization::{LocalizationConfig, LocalizationState};
+use echofield_frontend::localization::{LocalizationConfig, LocalizationState, LocalizationStep};
 use echofield_frontend::uncertainty::information;
 use echofield_graph::{Edge, EdgeKind, Node, PoseGraph, Se2};
 use nalgebra::{Matrix3, Vector3};
@@ -50,6 +56,15 @@ pub const FIX_FLOOR_M: f64 = 0.1;
 
 /// Smallest standard deviation of a fix's heading, rad.
 pub const FIX_FLOOR_RAD: f64 = 0.01;
+
+/// Standard deviation of a fix's position along a direction its scan does
+/// not see (a quay's length), m: large against the odometry's, so the
+/// motion carries that direction, and finite, so the fix's covariance
+/// exists.
+pub const FLAT_SIGMA_M: f64 = 10.0;
+
+/// The same for the heading, rad.
+pub const FLAT_SIGMA_RAD: f64 = 1.0;
 
 /// Cauchy kernel parameter on the fixes, standard deviations.
 const FIX_KERNEL: RobustKernel = RobustKernel::CAUCHY_DEFAULT;
@@ -104,17 +119,13 @@ pub fn smoothing_rotations(
         .map(|(k, r)| {
             let step = &r.step;
             let is_fix = step.state == LocalizationState::Localised && step.fit >= config.min_fit;
-            let position_var = 0.5 * step.spread_m.powi(2) + FIX_FLOOR_M.powi(2);
-            let heading_var = step.heading_spread_rad.powi(2) + FIX_FLOOR_RAD.powi(2);
             // Re-seeded after the previous rotation (judged lost; at the
             // first rotation the seeding comes before it): the dead
             // reckoning missed a motion, so the chain is cut.
             let cut = k >= 2 && rotations[k - 1].step.reseeded;
             SmoothingRotation {
                 estimate: step.estimate,
-                fix: is_fix.then(|| {
-                    Matrix3::from_diagonal(&Vector3::new(position_var, position_var, heading_var))
-                }),
+                fix: is_fix.then(|| fix_covariance(step)),
                 motion: r
                     .motion
                     .filter(|_| !cut)
@@ -122,6 +133,32 @@ pub fn smoothing_rotations(
             }
         })
         .collect()
+}
+
+/// A fix's covariance from the filter's step (see the module doc).
+fn fix_covariance(step: &LocalizationStep) -> Matrix3<f64> {
+    let floor = Matrix3::from_diagonal(&Vector3::new(
+        FIX_FLOOR_M.powi(2),
+        FIX_FLOOR_M.powi(2),
+        FIX_FLOOR_RAD.powi(2),
+    ));
+    let least = Matrix3::from_diagonal(&Vector3::new(
+        FLAT_SIGMA_M.powi(-2),
+        FLAT_SIGMA_M.powi(-2),
+        FLAT_SIGMA_RAD.powi(-2),
+    ));
+    let from_scan = step
+        .scan_information
+        .and_then(|information| (information + least).try_inverse());
+    let spread = || {
+        let position_var = 0.5 * step.spread_m.powi(2);
+        Matrix3::from_diagonal(&Vector3::new(
+            position_var,
+            position_var,
+            step.heading_spread_rad.powi(2),
+        ))
+    };
+    from_scan.unwrap_or_else(spread) + floor
 }
 
 /// One uncut piece, its first rotation the `first`-th of the mission's
@@ -210,6 +247,47 @@ mod tests {
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
     use rand_distr::StandardNormal;
+
+    fn step(scan_information: Option<Matrix3<f64>>) -> LocalizationStep {
+        LocalizationStep {
+            state: LocalizationState::Localised,
+            estimate: Se2::identity(),
+            mean: Se2::identity(),
+            spread_m: 0.2,
+            heading_spread_rad: 0.02,
+            particles: 1000,
+            fit: 0.9,
+            coverage: 1.0,
+            scan_points: 500,
+            reseeded: false,
+            scan_information,
+        }
+    }
+
+    #[test]
+    fn a_fix_is_what_the_scan_saw_and_the_spread_only_without_it() {
+        // The scan saw x (σ 0.05 m) and the heading (σ 0.01 rad), not y:
+        // variances 0.05² + 0.1², 1 / (0 + 10⁻²) + 0.1², ... plus the
+        // least information of a flat direction, which leaves x and θ
+        // nearly as they are.
+        let information = Matrix3::from_diagonal(&Vector3::new(400.0, 0.0, 1e4));
+        let c = fix_covariance(&step(Some(information)));
+        let expected = [
+            1.0 / (400.0 + 0.01) + 0.01,
+            100.0 + 0.01,
+            1.0 / (1e4 + 1.0) + 1e-4,
+        ];
+        for (i, e) in expected.iter().enumerate() {
+            assert!((c[(i, i)] - e).abs() < 1e-9 * e.max(1.0), "{c}");
+        }
+        assert!(c[(0, 1)].abs() < 1e-12 && c[(0, 2)].abs() < 1e-12);
+        // Without it (after a seeding): the particles' spread, isotropic.
+        let c = fix_covariance(&step(None));
+        let position = 0.5 * 0.2f64.powi(2) + 0.01;
+        let heading = 0.02f64.powi(2) + 1e-4;
+        assert!((c[(0, 0)] - position).abs() < 1e-12 && (c[(1, 1)] - position).abs() < 1e-12);
+        assert!((c[(2, 2)] - heading).abs() < 1e-12, "{c}");
+    }
 
     /// A lawnmower-like path of `n` rotations, 5 m apart, turning by
     /// 0.05 rad per rotation.
