@@ -93,10 +93,7 @@ fn run(
     let (mut engine, dead_reckoning_s) = start(mission, config, progress, online)?;
     engine.set_input_report(intensity, warnings);
     let mut ignore = |_: NodeEvent| {};
-    let on_event: &mut dyn FnMut(NodeEvent) = match on_event {
-        Some(f) => f,
-        None => &mut ignore,
-    };
+    let on_event: &mut dyn FnMut(NodeEvent) = on_event.unwrap_or(&mut ignore);
     replay(mission, &mut engine, progress, on_event)?;
     finish(engine, mission, progress, online, dead_reckoning_s)
 }
