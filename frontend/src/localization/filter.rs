@@ -28,7 +28,9 @@
 //! ([`MonteCarloLocalizer::start_at`]).
 
 use super::field::LikelihoodField;
-use super::particles::{Belief, KldBounds, Particle, belief, gaussian, kld_resample, set_weights};
+use super::particles::{
+    Belief, KldBounds, Particle, belief, covariance, kld_resample, set_weights,
+};
 use super::refine::RefineProblem;
 use super::{Estimate, LocalizationConfig};
 use crate::error::FrontendError;
@@ -268,12 +270,14 @@ impl MonteCarloLocalizer {
         if self.particles.is_empty() {
             self.seed_global(heading_rad);
             reseeded = true;
-        } else if let Some((relative, covariance)) = motion {
-            self.predict(relative, covariance);
+        } else if let Some((relative, motion_covariance)) = motion {
+            self.predict(relative, motion_covariance);
             // The predicted cloud is the refinement's prior (step 3); a
             // degenerate one (every particle on one pose) gives none.
-            prior = gaussian(&self.particles)
-                .and_then(|(mean, covariance)| Some((mean, covariance.try_inverse()?)));
+            let mean = belief(&self.particles).mean;
+            prior = covariance(&self.particles, &mean)
+                .try_inverse()
+                .map(|information| (mean, information));
         }
         let stride = points.len().div_ceil(self.config.max_scan_points).max(1);
         let scored = points.len() >= MIN_SCAN_POINTS;
@@ -282,8 +286,8 @@ impl MonteCarloLocalizer {
         }
         let weighed = self.particles.len();
         let b = belief(&self.particles);
-        let scan_information = match (&prior, gaussian(&self.particles)) {
-            (Some((_, predicted)), Some((_, posterior))) if scored => posterior
+        let scan_information = match &prior {
+            Some((_, predicted)) if scored => covariance(&self.particles, &b.mean)
                 .try_inverse()
                 .map(|information| positive_part(&(information - predicted))),
             _ => None,

@@ -61,15 +61,11 @@ pub fn belief(particles: &[Particle]) -> Belief {
     }
 }
 
-/// The weighted mean and covariance of `particles` in `(x, y, θ)` (world
-/// frame, m and rad; headings unwrapped about the circular mean): the
-/// Gaussian that stands for the cloud as a prior. `None` for fewer than
-/// two particles.
-pub fn gaussian(particles: &[Particle]) -> Option<(Se2, Matrix3<f64>)> {
-    if particles.len() < 2 {
-        return None;
-    }
-    let mean = belief(particles).mean;
+/// The weighted covariance of `particles` about `mean` (their
+/// [`Belief::mean`]) in `(x, y, θ)` (world frame, m² and rad²; headings
+/// unwrapped about the mean): with the mean, the Gaussian that stands for
+/// the cloud. Singular for a single pose (one particle, or all on one).
+pub fn covariance(particles: &[Particle], mean: &Se2) -> Matrix3<f64> {
     let mut covariance = Matrix3::zeros();
     for p in particles {
         let d = Vector3::new(
@@ -79,7 +75,7 @@ pub fn gaussian(particles: &[Particle]) -> Option<(Se2, Matrix3<f64>)> {
         );
         covariance += p.weight * d * d.transpose();
     }
-    Some((mean, covariance))
+    covariance
 }
 
 /// Sets the weights of `particles` from their log-weights (the largest
@@ -199,7 +195,7 @@ mod tests {
     }
 
     #[test]
-    fn the_gaussian_of_a_cloud_is_its_weighted_mean_and_covariance() {
+    fn the_covariance_of_a_cloud_is_weighted_about_its_mean() {
         // Two equally weighted particles at (±1, 0, ±0.1) and one of no
         // weight far away: mean at the origin, variances 1 (x) and 0.01
         // (θ), covariance of x and θ 0.1, nothing in y.
@@ -217,11 +213,14 @@ mod tests {
                 weight: 0.0,
             },
         ];
-        let (mean, covariance) = gaussian(&cloud).unwrap();
+        let mean = belief(&cloud).mean;
         assert!(mean.translation().norm() < 1e-12 && mean.theta().abs() < 1e-12);
+        let c = covariance(&cloud, &mean);
         let expected = Matrix3::new(1.0, 0.0, 0.1, 0.0, 0.0, 0.0, 0.1, 0.0, 0.01);
-        assert!((covariance - expected).norm() < 1e-12, "{covariance}");
-        assert!(gaussian(&cloud[..1]).is_none());
+        assert!((c - expected).norm() < 1e-12, "{c}");
+        // One particle: no spread, no inverse.
+        let one = &cloud[..1];
+        assert!(covariance(one, &belief(one).mean).try_inverse().is_none());
     }
 
     #[test]

@@ -23,9 +23,9 @@ impl SlamEngine<'_> {
     /// Ends the run: processes the last rotation and those still waiting
     /// (unless [`Self::end_of_data`] did), densifies the loops, runs the
     /// robust final solve and builds the output; evaluates it against
-    /// `ground_truth` when not empty (strictly after the estimation). Errors: no rotation became a node, no node
-    /// has a scan or an image, the navigation never started, a failed
-    /// final solve.
+    /// `ground_truth` when not empty (strictly after the estimation).
+    /// Errors: no rotation became a node, no node has a scan or an image,
+    /// the navigation never started, a failed final solve.
     pub fn finish(mut self, ground_truth: &[GroundTruthPose]) -> Result<SlamOutput, SlamError> {
         self.end_of_data()?;
         if self.rotation_ranges.is_empty() {

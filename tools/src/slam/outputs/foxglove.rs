@@ -138,8 +138,8 @@ fn write_nodes(
 
 /// The whole-mission topics at `t0`: the optimised, dead-reckoning,
 /// (placed in the world frame by `world_from_ground_truth`) ground-truth
-/// and (online runs) emitted trajectories, and the accepted and rejected loops as line segments
-/// between optimised poses.
+/// and (online runs) emitted trajectories, and the accepted and rejected
+/// loops as line segments between optimised poses.
 fn write_trajectories(
     w: &mut MissionWriter,
     t0: f64,
