@@ -47,6 +47,12 @@
 //! of the successes with its standard error: along the true displacement
 //! (negative: the match is short), and in heading. Use it with
 //! `--navigation ground-truth`, so that motion compensation adds nothing.
+//! A match that lands on a false peak beside the true one fails and is
+//! left out of that mean, though a pose graph takes it if its covariance
+//! allows; [`Evaluation::bias_near`] averages every match within
+//! [`NEAR_MISS_M`] of the truth, success or not (along a quay, where the
+//! score is flat, the false peaks are short: EXPERIMENTS.md § Long
+//! missions, "What the short loops are").
 
 use super::MissionRotations;
 use crate::slam::SlamConfig;
@@ -184,10 +190,10 @@ pub struct Trial {
 /// the standard errors of the means (module doc, **Bias**).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct Bias {
-    /// Successes averaged.
+    /// Matches averaged.
     pub trials: usize,
     /// Error along the unit vector of the true translation, metres
-    /// (negative: the estimate is short); successes whose true
+    /// (negative: the estimate is short); matches whose true
     /// translation is under 0.1 m are left out of this one.
     pub along_m: f64,
     pub along_standard_error_m: f64,
@@ -198,6 +204,11 @@ pub struct Bias {
     /// the scale error of the estimated displacements (-0.005: 0.5% short).
     pub scale: f64,
 }
+
+/// How far from the truth a match may land and still count in
+/// [`Evaluation::bias_near`], metres: beyond the success bound, within
+/// the reach of a false peak along a wall.
+pub const NEAR_MISS_M: f64 = 2.0;
 
 /// Everything measured.
 #[derive(Clone, Debug, Serialize)]
@@ -627,14 +638,15 @@ impl Evaluation {
     pub fn table(&self) -> String {
         let max = self.config.max_initial_error_m;
         let min_c = self.config.min_constraint;
+        let near = NEAR_MISS_M;
         let mut out = String::new();
         let _ = writeln!(
             out,
-            "| pairs | method | trials | success | constrained pairs (≥ {min_c}) | init <1 m | init 1-3 m | init 3-{max:.0} m | median error (succ.) | mean time | mean NEES (succ.) | confident: share, success | failures scoring ≥ truth | bias (succ.): along, heading, scale |"
+            "| pairs | method | trials | success | constrained pairs (≥ {min_c}) | init <1 m | init 1-3 m | init 3-{max:.0} m | median error (succ.) | mean time | mean NEES (succ.) | confident: share, success | failures scoring ≥ truth | bias (succ.): along, heading, scale | bias within {near:.0} m: along, scale |"
         );
         let _ = writeln!(
             out,
-            "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+            "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
         );
         for kind in [PairKind::Consecutive, PairKind::NonConsecutive] {
             for method in [Method::AcousticImage, Method::Icp] {
@@ -691,8 +703,20 @@ impl Evaluation {
                 )
             },
         );
+        let near = self.bias_near(kind, method).map_or_else(
+            || "-".into(),
+            |b| {
+                format!(
+                    "{:+.3} ± {:.3} m, {:+.2}% ({})",
+                    b.along_m,
+                    b.along_standard_error_m,
+                    100.0 * b.scale,
+                    b.trials
+                )
+            },
+        );
         format!(
-            "| {kind:?} | {method:?} | {} | {} | {} | {} | {} | {} | {median_error} | {mean_ms:.2} ms | {mean_nees} | {confident} | {ambiguous} | {bias} |\n",
+            "| {kind:?} | {method:?} | {} | {} | {} | {} | {} | {} | {median_error} | {mean_ms:.2} ms | {mean_nees} | {confident} | {ambiguous} | {bias} | {near} |\n",
             trials.len(),
             success_cell(trials),
             success_cell(&constrained),
@@ -705,11 +729,31 @@ impl Evaluation {
     /// The mean signed error of `method`'s successes on `kind` pairs
     /// (module doc, **Bias**); `None` with fewer than two successes.
     pub fn bias(&self, kind: PairKind, method: Method) -> Option<Bias> {
-        // (along-track error, true distance, heading error) per success.
+        self.bias_where(kind, method, |t| t.success)
+    }
+
+    /// [`Self::bias`] over every match of `method` on `kind` pairs that
+    /// lands within [`NEAR_MISS_M`] of the truth, success or not (module
+    /// doc, **Bias**); `None` with fewer than two.
+    pub fn bias_near(&self, kind: PairKind, method: Method) -> Option<Bias> {
+        self.bias_where(kind, method, |t| {
+            t.estimate
+                .is_some_and(|e| (e[0] - t.truth[0]).hypot(e[1] - t.truth[1]) < NEAR_MISS_M)
+        })
+    }
+
+    /// The bias of the trials of `method` on `kind` pairs that `keep`.
+    fn bias_where(
+        &self,
+        kind: PairKind,
+        method: Method,
+        keep: impl Fn(&Trial) -> bool,
+    ) -> Option<Bias> {
+        // (along-track error, true distance, heading error) per match.
         let errors: Vec<(Option<(f64, f64)>, f64)> = self
             .trials
             .iter()
-            .filter(|t| t.kind == kind && t.method == method && t.success)
+            .filter(|t| t.kind == kind && t.method == method && keep(t))
             .filter_map(|t| {
                 let estimate = t.estimate?;
                 let truth = Vector2::new(t.truth[0], t.truth[1]);
@@ -921,12 +965,19 @@ mod tests {
                     3.132 - std::f64::consts::TAU,
                 ],
             ),
-            // Neither a failure nor another method counts.
+            // Neither a failure nor another method counts; a failure 0.5 m
+            // short counts among the near misses, one 4.2 m off does not.
             trial(
                 Method::AcousticImage,
                 false,
                 [2.0, 0.0, 0.0],
                 [5.0, 3.0, 1.0],
+            ),
+            trial(
+                Method::AcousticImage,
+                false,
+                [8.0, 0.0, 0.0],
+                [7.5, 0.0, 0.006],
             ),
             trial(Method::Icp, true, [2.0, 0.0, 0.0], [2.2, 0.0, 0.1]),
         ];
@@ -953,6 +1004,21 @@ mod tests {
             evaluation
                 .table()
                 .contains("-0.040 ± 0.012 m, +0.115 ± 0.033°, -1.00%")
+        );
+        // The near misses: the three successes and the failure 0.5 m short
+        // of 8 m; along errors -0.02, -0.04, -0.06, -0.5 m.
+        let near = evaluation
+            .bias_near(PairKind::Consecutive, Method::AcousticImage)
+            .unwrap();
+        assert_eq!(near.trials, 4);
+        assert!((near.along_m + 0.155).abs() < 1e-9, "{near:?}");
+        // Σ e·d / Σ d² = (-0.04 - 0.16 - 0.36 - 4) / (4 + 16 + 36 + 64).
+        assert!((near.scale + 4.56 / 120.0).abs() < 1e-9, "{near:?}");
+        assert!((near.heading_rad - 0.003).abs() < 1e-9, "{near:?}");
+        assert!(
+            evaluation.table().contains("| -0.155 ± "),
+            "{}",
+            evaluation.table()
         );
         // One success is not enough for a standard error.
         assert_eq!(evaluation.bias(PairKind::Consecutive, Method::Icp), None);
