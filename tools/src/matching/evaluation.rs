@@ -690,31 +690,8 @@ impl Evaluation {
         } else {
             (confident_cell(trials), ambiguous_cell(trials))
         };
-        let bias = self.bias(kind, method).map_or_else(
-            || "-".into(),
-            |b| {
-                format!(
-                    "{:+.3} ± {:.3} m, {:+.3} ± {:.3}°, {:+.2}%",
-                    b.along_m,
-                    b.along_standard_error_m,
-                    b.heading_rad.to_degrees(),
-                    b.heading_standard_error_rad.to_degrees(),
-                    100.0 * b.scale
-                )
-            },
-        );
-        let near = self.bias_near(kind, method).map_or_else(
-            || "-".into(),
-            |b| {
-                format!(
-                    "{:+.3} ± {:.3} m, {:+.2}% ({})",
-                    b.along_m,
-                    b.along_standard_error_m,
-                    100.0 * b.scale,
-                    b.trials
-                )
-            },
-        );
+        let bias = bias_cell(self.bias(kind, method), true);
+        let near = bias_cell(self.bias_near(kind, method), false);
         format!(
             "| {kind:?} | {method:?} | {} | {} | {} | {} | {} | {} | {median_error} | {mean_ms:.2} ms | {mean_nees} | {confident} | {ambiguous} | {bias} | {near} |\n",
             trials.len(),
@@ -799,6 +776,27 @@ impl Evaluation {
             return 0.0;
         }
         trials.iter().filter(|t| t.success).count() as f64 / trials.len() as f64
+    }
+}
+
+/// A bias as a table cell: the along-track mean ± its standard error,
+/// the heading's when `heading`, the scale, and the matches averaged when
+/// not `heading` (the near misses, whose count the success column does
+/// not give); "-" without one.
+fn bias_cell(bias: Option<Bias>, heading: bool) -> String {
+    let Some(b) = bias else {
+        return "-".into();
+    };
+    let along = format!("{:+.3} ± {:.3} m", b.along_m, b.along_standard_error_m);
+    if heading {
+        format!(
+            "{along}, {:+.3} ± {:.3}°, {:+.2}%",
+            b.heading_rad.to_degrees(),
+            b.heading_standard_error_rad.to_degrees(),
+            100.0 * b.scale
+        )
+    } else {
+        format!("{along}, {:+.2}% ({})", 100.0 * b.scale, b.trials)
     }
 }
 
