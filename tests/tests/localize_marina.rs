@@ -23,7 +23,7 @@ use echofield_graph::Se2;
 use echofield_tests::prior_map_of_run;
 use std::sync::OnceLock;
 
-/// ATE bound after convergence, m: the issue's 0.3 m, for the filtered
+/// ATE bound after convergence, m (issue 38's target): for the filtered
 /// estimates and the offline smoothed trajectory, and after the recovery
 /// from a kidnapping. Seed 6 is tested for its DVL gaps (EXPERIMENTS.md
 /// § Localisation through DVL gaps); the map's own error (its run's ATE)

@@ -113,7 +113,7 @@ fn the_second_half_of_real_st_pere_localises_on_the_first_halfs_map() {
         rotations.len() - converged,
         report.rotations_far_from_map
     );
-    // The 1.0 m, through the map's fit (which carries the map
+    // The bound, through the map's fit (which carries the map
     // run's own error) and fitted (EXPERIMENTS.md gives the figures and
     // their spread over the map's yaw). The filter beats dead reckoning, converges
     // early and stays localised or coasting through the part of the route

@@ -68,14 +68,21 @@ pub fn belief(particles: &[Particle]) -> Belief {
 pub fn covariance(particles: &[Particle], mean: &Se2) -> Matrix3<f64> {
     let mut covariance = Matrix3::zeros();
     for p in particles {
-        let d = Vector3::new(
-            p.pose.x() - mean.x(),
-            p.pose.y() - mean.y(),
-            wrap_angle(p.pose.theta() - mean.theta()),
-        );
+        let d = offset(&p.pose, mean);
         covariance += p.weight * d * d.transpose();
     }
     covariance
+}
+
+/// `pose − mean` in `(x, y, θ)` (world frame, m and rad), the heading
+/// wrapped to `(−π, π]`: the offset a Gaussian in those coordinates
+/// ([`covariance`]) measures.
+pub fn offset(pose: &Se2, mean: &Se2) -> Vector3<f64> {
+    Vector3::new(
+        pose.x() - mean.x(),
+        pose.y() - mean.y(),
+        wrap_angle(pose.theta() - mean.theta()),
+    )
 }
 
 /// Sets the weights of `particles` from their log-weights (the largest

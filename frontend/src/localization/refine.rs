@@ -29,6 +29,7 @@
 //! returned.
 
 use super::field::LikelihoodField;
+use super::particles::offset;
 use argmin::core::{CostFunction, Error, Executor, State};
 use argmin::solver::neldermead::NelderMead;
 use echofield_graph::{Se2, wrap_angle};
@@ -81,11 +82,7 @@ impl RefineProblem<'_> {
             .refine_score(pose, self.points, self.stride, self.unknown);
         let dh = wrap_angle(pose.theta() - self.heading_rad);
         let prior = self.prior.as_ref().map_or(0.0, |(mean, information)| {
-            let d = Vector3::new(
-                pose.x() - mean.x(),
-                pose.y() - mean.y(),
-                wrap_angle(pose.theta() - mean.theta()),
-            );
+            let d = offset(pose, mean);
             0.5 * d.dot(&(information * d))
         });
         self.gain * s.mean - dh * dh / (2.0 * self.heading_sigma_rad.powi(2)) - prior
