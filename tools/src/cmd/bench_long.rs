@@ -16,6 +16,11 @@ Examples:
   # about 179, 351, 699 and 1,397 rotations
   echofield bench-long --output out/bench-long
 
+  # The same over five simulations of each speed (seeds 1-5), with the
+  # mean of each speed: one seed's ATE moves by about 0.1 m with the set of
+  # loops it happens to accept
+  echofield bench-long --output out/bench-long --seeds 1,2,3,4,5
+
   # Only the smaller sizes, with a pipeline config
   echofield bench-long --output out/bench-long --speeds 0.4,0.2 --config my.toml
 
@@ -35,7 +40,8 @@ and nodes with --node-spacing-m (rotation.node_spacing_m, 2 m here and
 in `run`).
 Each mission is written to OUTPUT as
 marina-<speed>.mcap and run by `echofield run`'s pipeline in a child
-process (outputs in OUTPUT/run-<speed>), whose peak resident memory
+process (outputs in OUTPUT/run-<speed>; with several --seeds,
+marina-<speed>-seed<N>.mcap and run-<speed>-seed<N>), whose peak resident memory
 (VmHWM, Linux), wall time and CPU time (user + system, all threads,
 Linux; unlike the wall time, hardly changed by other programs on a
 loaded machine), reading and writing included, are reported
@@ -43,8 +49,10 @@ with the run's loop candidates, accepted loops, node images built again
 after the memory budget released them, and ATE (dead reckoning's in
 brackets); with --online each run goes through the causal engine as
 `run --online` does, and the table adds the ATE of the emitted estimates
-and the latency per rotation (p50 / p95 / max). The last line compares
-the largest mission's times with the smallest's.";
+and the latency per rotation (p50 / p95 / max). With several seeds a row
+per seed is followed by the mean of each speed over the seeds. The last
+line compares the last speed's times with the first's (their means over
+the seeds).";
 
 #[derive(Debug, clap::Args)]
 #[command(after_help = EXAMPLES)]
@@ -55,9 +63,10 @@ pub struct Args {
     /// Cruise speeds of the simulated vehicle, m/s, comma separated.
     #[arg(long, value_delimiter = ',', default_value = "0.4,0.2,0.1,0.05")]
     pub speeds: Vec<f64>,
-    /// Seed of the simulation.
-    #[arg(long, default_value_t = 1)]
-    pub seed: u64,
+    /// Seeds of the simulations, comma separated: each speed is simulated
+    /// and run once per seed (`--seed` is the same option).
+    #[arg(long, alias = "seed", value_delimiter = ',', default_value = "1")]
+    pub seeds: Vec<u64>,
     /// Pipeline configuration (TOML) for the runs.
     #[arg(long)]
     pub config: Option<PathBuf>,
@@ -83,6 +92,7 @@ pub struct Args {
 /// One row of the table.
 struct Row {
     speed_mps: f64,
+    seed: u64,
     rotations: usize,
     nodes: usize,
     candidates: usize,
@@ -112,17 +122,49 @@ pub fn run(args: Args) -> Result<()> {
     }
     std::fs::create_dir_all(&args.output)
         .with_context(|| format!("cannot create folder {}", args.output.display()))?;
-    let mut rows = Vec::new();
-    print_header(args.online);
-    for &speed in &args.speeds {
-        let mission = args.output.join(format!("marina-{speed}.mcap"));
-        simulate(speed, args.seed, &mission)?;
-        let row = measure(speed, &mission, &args)?;
-        print_row(&row);
-        rows.push(row);
+    if args.seeds.is_empty() {
+        bail!("--seeds needs at least one seed");
     }
-    if let (Some(first), Some(last)) = (rows.first(), rows.last())
-        && rows.len() > 1
+    if let Some(seed) = args
+        .seeds
+        .iter()
+        .enumerate()
+        .find_map(|(k, s)| args.seeds[..k].contains(s).then_some(s))
+    {
+        bail!("--seeds lists seed {seed} twice (its runs would share one output folder)");
+    }
+    let several = args.seeds.len() > 1;
+    let mut rows = Vec::new();
+    print_header(args.online, several);
+    for &speed in &args.speeds {
+        for &seed in &args.seeds {
+            let name = if several {
+                format!("{speed}-seed{seed}")
+            } else {
+                speed.to_string()
+            };
+            let mission = args.output.join(format!("marina-{name}.mcap"));
+            simulate(speed, seed, &mission)?;
+            let row = measure(
+                speed,
+                seed,
+                &mission,
+                &args.output.join(format!("run-{name}")),
+                &args,
+            )?;
+            print_row(&row, several);
+            rows.push(row);
+        }
+    }
+    let means = speed_means(&rows);
+    if several {
+        println!();
+        println!("Mean over seeds {}:", join(&args.seeds));
+        print_header(args.online, false);
+        means.iter().for_each(|row| print_row(row, false));
+    }
+    if let (Some(first), Some(last)) = (means.first(), means.last())
+        && means.len() > 1
     {
         let cpu = match (last.cpu_s, first.cpu_s) {
             (Some(l), Some(f)) => format!(" ({:.1} times the CPU time)", l / f.max(1e-9)),
@@ -138,7 +180,69 @@ pub fn run(args: Args) -> Result<()> {
     Ok(())
 }
 
-fn print_header(online: bool) {
+fn join(seeds: &[u64]) -> String {
+    seeds
+        .iter()
+        .map(u64::to_string)
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// One row per speed (in the order of `rows`): each count, time, memory
+/// and ATE the mean of that speed's rows (rounded for the counts; a
+/// figure missing from any row is missing from the mean).
+fn speed_means(rows: &[Row]) -> Vec<Row> {
+    let mut speeds: Vec<f64> = Vec::new();
+    for row in rows {
+        if !speeds.contains(&row.speed_mps) {
+            speeds.push(row.speed_mps);
+        }
+    }
+    speeds
+        .into_iter()
+        .map(|speed| {
+            let of: Vec<&Row> = rows.iter().filter(|r| r.speed_mps == speed).collect();
+            let n = of.len() as f64;
+            let count = |f: fn(&Row) -> usize| {
+                (of.iter().map(|r| f(r) as f64).sum::<f64>() / n).round() as usize
+            };
+            let mean = |f: fn(&Row) -> Option<f64>| {
+                of.iter().map(|r| f(r)).sum::<Option<f64>>().map(|s| s / n)
+            };
+            let online = of
+                .iter()
+                .map(|r| r.online.as_ref())
+                .collect::<Option<Vec<_>>>()
+                .map(|o| OnlineFigures {
+                    ate_m: o
+                        .iter()
+                        .map(|f| f.ate_m)
+                        .sum::<Option<f64>>()
+                        .map(|s| s / n),
+                    latency_ms: std::array::from_fn(|k| {
+                        o.iter().map(|f| f.latency_ms[k]).sum::<f64>() / n
+                    }),
+                });
+            Row {
+                speed_mps: speed,
+                seed: of[0].seed,
+                rotations: count(|r| r.rotations),
+                nodes: count(|r| r.nodes),
+                candidates: count(|r| r.candidates),
+                accepted: count(|r| r.accepted),
+                rebuilt: count(|r| r.rebuilt),
+                time_s: of.iter().map(|r| r.time_s).sum::<f64>() / n,
+                cpu_s: mean(|r| r.cpu_s),
+                peak_mb: mean(|r| r.peak_mb),
+                ate_m: mean(|r| r.ate_m),
+                ate_dr_m: mean(|r| r.ate_dr_m),
+                online,
+            }
+        })
+        .collect()
+}
+
+fn print_header(online: bool, seed_column: bool) {
     let (extra, rule) = if online {
         (
             " online ATE (m) | latency p50 / p95 / max (ms) |",
@@ -147,13 +251,18 @@ fn print_header(online: bool) {
     } else {
         ("", "")
     };
+    let (seed, seed_rule) = if seed_column {
+        (" seed |", "---|")
+    } else {
+        ("", "")
+    };
     println!(
-        "| cruise speed (m/s) | rotations | nodes | loop candidates | loops accepted | images rebuilt | time (s) | CPU time (s) | peak memory (MB) | ATE (DR) (m) |{extra}"
+        "| cruise speed (m/s) |{seed} rotations | nodes | loop candidates | loops accepted | images rebuilt | time (s) | CPU time (s) | peak memory (MB) | ATE (DR) (m) |{extra}"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|{rule}");
+    println!("|---|{seed_rule}---|---|---|---|---|---|---|---|---|{rule}");
 }
 
-fn print_row(row: &Row) {
+fn print_row(row: &Row, seed_column: bool) {
     let show = |v: Option<f64>, digits: usize| {
         v.map_or_else(|| "n/a".to_string(), |v| format!("{v:.digits$}"))
     };
@@ -161,8 +270,13 @@ fn print_row(row: &Row) {
         let [p50, p95, max] = o.latency_ms;
         format!(" {} | {p50:.1} / {p95:.1} / {max:.1} |", show(o.ate_m, 3))
     });
+    let seed = if seed_column {
+        format!(" {} |", row.seed)
+    } else {
+        String::new()
+    };
     println!(
-        "| {} | {} | {} | {} | {} | {} | {:.1} | {} | {} | {} ({}) |{online}",
+        "| {} |{seed} {} | {} | {} | {} | {} | {:.1} | {} | {} | {} ({}) |{online}",
         row.speed_mps,
         row.rotations,
         row.nodes,
@@ -187,15 +301,15 @@ fn simulate(speed_mps: f64, seed: u64, path: &Path) -> Result<()> {
     Ok(())
 }
 
-/// Runs `mission` in a child process of this program and reads its report.
-fn measure(speed_mps: f64, mission: &Path, args: &Args) -> Result<Row> {
+/// Runs `mission` (simulated with `seed`) in a child process of this
+/// program, its outputs in `out`, and reads its report.
+fn measure(speed_mps: f64, seed: u64, mission: &Path, out: &Path, args: &Args) -> Result<Row> {
     let exe = std::env::current_exe().context("cannot find the echofield program")?;
-    let out = args.output.join(format!("run-{speed_mps}"));
     let mut command = std::process::Command::new(exe);
     command
         .arg("bench-long")
         .arg("--output")
-        .arg(&out)
+        .arg(out)
         .arg("--child")
         .arg(mission)
         .arg("--cover-spacing-m")
@@ -236,6 +350,7 @@ fn measure(speed_mps: f64, mission: &Path, args: &Args) -> Result<Row> {
     let count = |key: &str| report[key].as_u64().unwrap_or(0) as usize;
     Ok(Row {
         speed_mps,
+        seed,
         rotations: count("rotations"),
         nodes: count("nodes"),
         candidates: count("loop_candidates"),
@@ -329,6 +444,51 @@ mod tests {
         let batch: serde_json::Value = serde_json::from_str(r#"{"online": null}"#).unwrap();
         assert!(online_figures(&batch["online"]).is_none());
         assert!(online_figures(&serde_json::Value::Null).is_none());
+    }
+
+    fn row(speed_mps: f64, seed: u64, rotations: usize, ate_m: Option<f64>) -> Row {
+        Row {
+            speed_mps,
+            seed,
+            rotations,
+            nodes: rotations,
+            candidates: 10 * rotations,
+            accepted: 3,
+            rebuilt: 0,
+            time_s: rotations as f64 / 100.0,
+            cpu_s: Some(rotations as f64 / 50.0),
+            peak_mb: None,
+            ate_m,
+            ate_dr_m: Some(2.0),
+            online: None,
+        }
+    }
+
+    #[test]
+    fn the_means_over_seeds_are_taken_per_speed_in_order() {
+        // Two speeds, two seeds each, in the order the runs are made.
+        let rows = [
+            row(0.4, 1, 179, Some(0.2)),
+            row(0.4, 2, 181, Some(0.4)),
+            row(0.05, 1, 1397, Some(0.5)),
+            row(0.05, 2, 1398, None),
+        ];
+        let means = speed_means(&rows);
+        assert_eq!(means.len(), 2);
+        let (fast, slow) = (&means[0], &means[1]);
+        assert_eq!(fast.speed_mps, 0.4);
+        assert_eq!(fast.rotations, 180);
+        assert_eq!(fast.candidates, 1800);
+        assert!((fast.ate_m.unwrap() - 0.3).abs() < 1e-12);
+        assert!((fast.time_s - 1.8).abs() < 1e-12);
+        assert!((fast.cpu_s.unwrap() - 3.6).abs() < 1e-12);
+        assert_eq!(fast.peak_mb, None);
+        assert_eq!(slow.speed_mps, 0.05);
+        // 1397.5 rounds away from zero.
+        assert_eq!(slow.rotations, 1398);
+        // A seed without an ATE leaves the mean without one.
+        assert_eq!(slow.ate_m, None);
+        assert_eq!(slow.ate_dr_m, Some(2.0));
     }
 
     #[test]
