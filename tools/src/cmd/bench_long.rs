@@ -117,22 +117,9 @@ pub fn run(args: Args) -> Result<()> {
     if let Some(mission) = &args.child {
         return run_child(mission, &args.output, args.config.as_deref(), &args);
     }
-    if args.speeds.is_empty() || args.speeds.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
-        bail!("--speeds must be positive cruise speeds in m/s");
-    }
+    check_lists(&args)?;
     std::fs::create_dir_all(&args.output)
         .with_context(|| format!("cannot create folder {}", args.output.display()))?;
-    if args.seeds.is_empty() {
-        bail!("--seeds needs at least one seed");
-    }
-    if let Some(seed) = args
-        .seeds
-        .iter()
-        .enumerate()
-        .find_map(|(k, s)| args.seeds[..k].contains(s).then_some(s))
-    {
-        bail!("--seeds lists seed {seed} twice (its runs would share one output folder)");
-    }
     let several = args.seeds.len() > 1;
     let mut rows = Vec::new();
     print_header(args.online, several);
@@ -145,13 +132,8 @@ pub fn run(args: Args) -> Result<()> {
             };
             let mission = args.output.join(format!("marina-{name}.mcap"));
             simulate(speed, seed, &mission)?;
-            let row = measure(
-                speed,
-                seed,
-                &mission,
-                &args.output.join(format!("run-{name}")),
-                &args,
-            )?;
+            let out = args.output.join(format!("run-{name}"));
+            let row = measure(speed, seed, &mission, &out, &args)?;
             print_row(&row, several);
             rows.push(row);
         }
@@ -163,21 +145,48 @@ pub fn run(args: Args) -> Result<()> {
         print_header(args.online, false);
         means.iter().for_each(|row| print_row(row, false));
     }
-    if let (Some(first), Some(last)) = (means.first(), means.last())
-        && means.len() > 1
-    {
-        let cpu = match (last.cpu_s, first.cpu_s) {
-            (Some(l), Some(f)) => format!(" ({:.1} times the CPU time)", l / f.max(1e-9)),
-            _ => String::new(),
-        };
-        println!(
-            "{} rotations took {:.1} times as long as {}{cpu}",
-            last.rotations,
-            last.time_s / first.time_s.max(1e-9),
-            first.rotations
+    print_time_ratio(&means);
+    Ok(())
+}
+
+/// Errors for speeds that are not positive and for a seed list that is
+/// empty or names a seed twice.
+fn check_lists(args: &Args) -> Result<()> {
+    if args.speeds.is_empty() || args.speeds.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
+        bail!("--speeds must be positive cruise speeds in m/s");
+    }
+    if args.seeds.is_empty() {
+        bail!("--seeds needs at least one seed");
+    }
+    let twice = (1..args.seeds.len()).find(|&k| args.seeds[..k].contains(&args.seeds[k]));
+    if let Some(k) = twice {
+        bail!(
+            "--seeds lists seed {} twice (its runs would share one output folder)",
+            args.seeds[k]
         );
     }
     Ok(())
+}
+
+/// The last line: the last speed's times against the first's (`means`,
+/// one row per speed), when there are two speeds or more.
+fn print_time_ratio(means: &[Row]) {
+    let (Some(first), Some(last)) = (means.first(), means.last()) else {
+        return;
+    };
+    if means.len() < 2 {
+        return;
+    }
+    let cpu = match (last.cpu_s, first.cpu_s) {
+        (Some(l), Some(f)) => format!(" ({:.1} times the CPU time)", l / f.max(1e-9)),
+        _ => String::new(),
+    };
+    println!(
+        "{} rotations took {:.1} times as long as {}{cpu}",
+        last.rotations,
+        last.time_s / first.time_s.max(1e-9),
+        first.rotations
+    );
 }
 
 fn join(seeds: &[u64]) -> String {
@@ -489,6 +498,27 @@ mod tests {
         // A seed without an ATE leaves the mean without one.
         assert_eq!(slow.ate_m, None);
         assert_eq!(slow.ate_dr_m, Some(2.0));
+    }
+
+    #[test]
+    fn speeds_and_seeds_are_checked_before_anything_runs() {
+        let args = |speeds: Vec<f64>, seeds: Vec<u64>| Args {
+            output: PathBuf::from("unused"),
+            speeds,
+            seeds,
+            config: None,
+            cover_spacing_m: 2.0,
+            node_spacing_m: 2.0,
+            online: false,
+            child: None,
+        };
+        assert!(check_lists(&args(vec![0.4, 0.05], vec![1, 2, 3])).is_ok());
+        let twice = check_lists(&args(vec![0.4], vec![1, 2, 1])).unwrap_err();
+        assert!(twice.to_string().contains("seed 1 twice"), "{twice}");
+        assert!(check_lists(&args(vec![0.4], vec![])).is_err());
+        assert!(check_lists(&args(vec![0.0], vec![1])).is_err());
+        assert!(check_lists(&args(vec![f64::NAN], vec![1])).is_err());
+        assert!(check_lists(&args(vec![], vec![1])).is_err());
     }
 
     #[test]
