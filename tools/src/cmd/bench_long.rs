@@ -17,8 +17,8 @@ Examples:
   echofield bench-long --output out/bench-long
 
   # The same over five simulations of each speed (seeds 1-5), with the
-  # mean of each speed: one seed's ATE moves by about 0.1 m with the set of
-  # loops it happens to accept
+  # mean of each speed: one seed's ATE depends on the loops it happens to
+  # accept
   echofield bench-long --output out/bench-long --seeds 1,2,3,4,5
 
   # Only the smaller sizes, with a pipeline config
@@ -234,6 +234,7 @@ fn speed_means(rows: &[Row]) -> Vec<Row> {
                 });
             Row {
                 speed_mps: speed,
+                // Not shown: mean rows are printed without the seed column.
                 seed: of[0].seed,
                 rotations: count(|r| r.rotations),
                 nodes: count(|r| r.nodes),
