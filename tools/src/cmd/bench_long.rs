@@ -51,8 +51,8 @@ brackets); with --online each run goes through the causal engine as
 `run --online` does, and the table adds the ATE of the emitted estimates
 and the latency per rotation (p50 / p95 / max). With several seeds a row
 per seed is followed by the mean of each speed over the seeds. The last
-line compares the last speed's times with the first's (their means over
-the seeds).";
+line compares the last speed's times with the first's (the means of each
+speed's runs).";
 
 #[derive(Debug, clap::Args)]
 #[command(after_help = EXAMPLES)]
@@ -215,19 +215,13 @@ fn speed_means(rows: &[Row]) -> Vec<Row> {
             let count = |f: fn(&Row) -> usize| {
                 (of.iter().map(|r| f(r) as f64).sum::<f64>() / n).round() as usize
             };
-            let mean = |f: fn(&Row) -> Option<f64>| {
-                of.iter().map(|r| f(r)).sum::<Option<f64>>().map(|s| s / n)
-            };
+            let mean = |f: fn(&Row) -> Option<f64>| mean_of_all(of.iter().map(|r| f(r)));
             let online = of
                 .iter()
                 .map(|r| r.online.as_ref())
                 .collect::<Option<Vec<_>>>()
                 .map(|o| OnlineFigures {
-                    ate_m: o
-                        .iter()
-                        .map(|f| f.ate_m)
-                        .sum::<Option<f64>>()
-                        .map(|s| s / n),
+                    ate_m: mean_of_all(o.iter().map(|f| f.ate_m)),
                     latency_ms: std::array::from_fn(|k| {
                         o.iter().map(|f| f.latency_ms[k]).sum::<f64>() / n
                     }),
@@ -250,6 +244,14 @@ fn speed_means(rows: &[Row]) -> Vec<Row> {
             }
         })
         .collect()
+}
+
+/// The mean of `values`, `None` when any is `None` (or there are none).
+fn mean_of_all(values: impl Iterator<Item = Option<f64>>) -> Option<f64> {
+    let values: Option<Vec<f64>> = values.collect();
+    values
+        .filter(|v| !v.is_empty())
+        .map(|v| v.iter().sum::<f64>() / v.len() as f64)
 }
 
 fn print_header(online: bool, seed_column: bool) {
