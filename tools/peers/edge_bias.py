@@ -12,8 +12,9 @@ and prints
   loops, partial densified loops) the mean error of the measured
   translation along the true displacement, metres, and as a scale;
 * with `--exact CLASS[,CLASS]`, the ATE of the graph solved again with
-  those classes' measurements replaced by the ground truth
-  (`--exact none` solves the graph as it is, which checks that the
+  those classes' measurements replaced by the ground truth (`prior`: the
+  heading priors' headings; `a+b` replaces both classes in one solve;
+  `--exact none` solves the graph as it is, which checks that the
   re-solve reproduces the run);
 * with `--influence N`, what sets the map's scale: the graph linearised
   at the ground truth (Gauss-Newton with each loop's Cauchy weight at its
@@ -102,12 +103,19 @@ def read_run(out):
     return trajectory, truth, edges, priors, vertices
 
 
+def frame_rotation(trajectory, truth):
+    """The rotation (radians) of the SE(2) alignment of the truth's
+    positions onto the trajectory's: the run's frame against the truth's."""
+    p, q = trajectory[:, :2], truth[:, :2]
+    h = (q - q.mean(0)).T @ (p - p.mean(0))
+    return math.atan2(h[0, 1] - h[1, 0], h[0, 0] + h[1, 1])
+
+
 def align(trajectory, truth):
     """ATE after SE(2) alignment, scale, ATE after a similarity."""
     p, q = trajectory[:, :2], truth[:, :2]
     mp, mq = p.mean(0), q.mean(0)
-    h = (q - mq).T @ (p - mp)
-    th = math.atan2(h[0, 1] - h[1, 0], h[0, 0] + h[1, 1])
+    th = frame_rotation(trajectory, truth)
     r = np.array([[math.cos(th), -math.sin(th)], [math.sin(th), math.cos(th)]])
     qa = (r @ (q - mq).T).T
     pc = p - mp
@@ -138,8 +146,11 @@ def bias(edges, truth):
             )
 
 
-def solve(edges, priors, vertices, truth, exact):
-    """The graph solved again from the run's poses (node 0 fixed)."""
+def solve(edges, priors, vertices, truth, exact, frame_rad):
+    """The graph solved again from the run's poses (node 0 fixed). Exact
+    heading priors are the true headings turned into the run's frame by
+    `frame_rad` (`frame_rotation`), since node 0 stays where the run put
+    it."""
     import gtsam
 
     graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
@@ -157,6 +168,8 @@ def solve(edges, priors, vertices, truth, exact):
             model = gtsam.noiseModel.Robust.Create(cauchy, model)
         graph.add(gtsam.BetweenFactorPose2(i, j, gtsam.Pose2(*z), model))
     for i, theta, info in priors:
+        if "prior" in exact:
+            theta = wrap(truth[i][2] + frame_rad)
         sigmas = np.array([1e6, 1e6, 1 / math.sqrt(info)])
         graph.add(
             gtsam.PriorFactorPose2(i, gtsam.Pose2(0, 0, theta), gtsam.noiseModel.Diagonal.Sigmas(sigmas))
@@ -251,7 +264,9 @@ def influence(edges, priors, trajectory, truth, count):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("out", help="echofield run output folder")
-    ap.add_argument("--exact", default="", help="comma-separated: none or classes " + ", ".join(CLASSES))
+    ap.add_argument(
+        "--exact", default="", help="comma-separated: none or classes " + ", ".join(CLASSES + ("prior",))
+    )
     ap.add_argument("--influence", type=int, metavar="N", help="per-class shares of the map's scale, N largest")
     args = ap.parse_args()
     trajectory, truth, edges, priors, vertices = read_run(args.out)
@@ -259,10 +274,10 @@ def main():
     bias(edges, truth)
     for group in filter(None, args.exact.split(",")):
         exact = set(group.split("+")) - {"none"}
-        unknown = exact - set(CLASSES)
+        unknown = exact - set(CLASSES) - {"prior"}
         if unknown:
             ap.error(f"--exact: unknown class {sorted(unknown)}")
-        solved = solve(edges, priors, vertices, truth, exact)
+        solved = solve(edges, priors, vertices, truth, exact, frame_rotation(trajectory, truth))
         print("exact %-24s ATE %.3f m, scale %.4f, ATE after the scale %.3f m" % ((group,) + align(solved, truth)))
     if args.influence is not None:
         influence(edges, priors, trajectory, truth, args.influence)

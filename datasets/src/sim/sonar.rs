@@ -81,6 +81,17 @@ pub struct SonarSimConfig {
     pub spreading_loss_db_per_decade: f64,
     /// Two-way absorption left after the time-varied gain, dB per metre.
     pub absorption_db_per_m: f64,
+    /// A surface returns less as the incidence grows ([`echo::backscatter`];
+    /// default on). Off: every surface returns its reflectivity at any
+    /// incidence, so a wall is as bright seen obliquely as squarely. A
+    /// diagnostic: with this, `footprint_lowers_peak` and both losses off,
+    /// how bright a wall looks no longer depends on where it is seen from.
+    pub backscatter_falls_with_incidence: bool,
+    /// The echo of a sub-ray spread in range by its footprint on an oblique
+    /// surface keeps its energy, so its peak falls as it widens (default
+    /// on). Off: the peak stays that of a hit at normal incidence (a
+    /// diagnostic, as `backscatter_falls_with_incidence`).
+    pub footprint_lowers_peak: bool,
     /// Energy of the vertical-beam tail behind a wall echo relative to the
     /// echo peak, 0-1.
     pub echo_tail_gain: f64,
@@ -126,6 +137,8 @@ impl Default for SonarSimConfig {
             echo_snr_db: 65.0,
             spreading_loss_db_per_decade: 10.0,
             absorption_db_per_m: 0.05,
+            backscatter_falls_with_incidence: true,
+            footprint_lowers_peak: true,
             echo_tail_gain: 0.05,
             speckle_looks: 4.0,
             spike_probability: 2e-4,
@@ -317,9 +330,14 @@ impl SonarModel {
                 continue;
             }
             let material = &env.segments()[hit.segment].material;
+            let backscatter = if c.backscatter_falls_with_incidence {
+                echo::backscatter(material, hit.incidence_rad)
+            } else {
+                material.reflectivity
+            };
             let amplitude = 10f64.powf(c.echo_snr_db / 10.0)
                 * weight
-                * echo::backscatter(material, hit.incidence_rad)
+                * backscatter
                 * echo::transmission_factor(
                     hit.range_m,
                     c.spreading_loss_db_per_decade,
@@ -330,7 +348,11 @@ impl SonarModel {
             let tan_incidence = hit.incidence_rad.min(85f64.to_radians()).tan();
             let footprint = 0.5 * hit.range_m * self.sub_ray_span_rad * tan_incidence;
             let sigma = (sigma0 * sigma0 + footprint * footprint).sqrt();
-            let peak = amplitude * sigma0 / sigma;
+            let peak = if c.footprint_lowers_peak {
+                amplitude * sigma0 / sigma
+            } else {
+                amplitude
+            };
             echo::deposit(echo, c.bin_size_m, hit.range_m, sigma, peak);
             deposit_tail(
                 echo,
@@ -419,5 +441,60 @@ fn deposit_tail(echo: &mut [f64], bin_size_m: f64, range_m: f64, length_m: f64, 
     for (i, bin) in echo.iter_mut().enumerate().take(last + 1).skip(first) {
         let behind = (i as f64 + 0.5) * bin_size_m - range_m;
         *bin += peak * (1.0 - behind / length_m).max(0.0);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::{EnvironmentBuilder, Material};
+
+    /// The echo energy in the bin centred at 10.05 m of one on-axis ray
+    /// that meets a concrete wall there at 60° incidence, without losses,
+    /// ghosts or tail in that bin (the tail starts one bin behind).
+    fn peak_at_60_degrees(config: SonarSimConfig) -> f64 {
+        let incidence = 60f64.to_radians();
+        let range = 10.05;
+        let mut b = EnvironmentBuilder::new();
+        // The wall y = d; a ray from the origin at 30° above x meets it at
+        // `range` with the given incidence to its normal (the y axis).
+        let d = range * incidence.cos();
+        b.segment([-100.0, d], [100.0, d], Material::CONCRETE);
+        let env = b.build("wall").unwrap();
+        let model = SonarModel::new(&SonarSimConfig {
+            sub_rays: 1,
+            spreading_loss_db_per_decade: 0.0,
+            absorption_db_per_m: 0.0,
+            multipath_gain: 0.0,
+            ..config
+        })
+        .unwrap();
+        let mut echo = vec![0.0; model.config().bins];
+        let bearing = std::f64::consts::FRAC_PI_2 - incidence;
+        model.add_structure_echoes(&mut echo, &env, Point2::origin(), bearing);
+        echo[100]
+    }
+
+    #[test]
+    fn the_viewpoint_free_echo_switches_keep_an_oblique_wall_as_bright_as_a_square_one() {
+        let c = SonarSimConfig::default();
+        let source = 10f64.powf(c.echo_snr_db / 10.0);
+        let concrete = Material::CONCRETE;
+        // Default: the backscatter law at 60°, and the peak lowered by the
+        // footprint's spread r·w·tan α / 2 (one ray spans the whole width w).
+        let sigma0 = 0.5 * c.pulse_length_m;
+        let footprint = 0.5 * 10.05 * c.beam_width_rad * 60f64.to_radians().tan();
+        let spread = sigma0 / (sigma0 * sigma0 + footprint * footprint).sqrt();
+        let want = source * echo::backscatter(&concrete, 60f64.to_radians()) * spread;
+        let got = peak_at_60_degrees(c.clone());
+        assert!((got / want - 1.0).abs() < 1e-9, "{got} against {want}");
+        // Both off: the reflectivity alone, as at normal incidence.
+        let flat = peak_at_60_degrees(SonarSimConfig {
+            backscatter_falls_with_incidence: false,
+            footprint_lowers_peak: false,
+            ..c
+        });
+        let want = source * concrete.reflectivity;
+        assert!((flat / want - 1.0).abs() < 1e-9, "{flat} against {want}");
     }
 }

@@ -194,9 +194,15 @@ mod tests {
         exact.heading.yaw_rate_noise_std_radps = 0.0;
         let mut narrow = exact.clone();
         narrow.sonar.beam_width_rad = 0.01;
+        let mut flat = SimConfig::default();
+        flat.sonar.spreading_loss_db_per_decade = 0.0;
+        flat.sonar.absorption_db_per_m = 0.0;
+        flat.sonar.backscatter_falls_with_incidence = false;
+        flat.sonar.footprint_lowers_peak = false;
         for (file, want) in [
             ("exact_navigation.toml", exact),
             ("exact_navigation_narrow_beam.toml", narrow),
+            ("flat_echo.toml", flat),
         ] {
             let got = read_config(&dir.join(file)).unwrap();
             got.validate().unwrap();

@@ -535,6 +535,7 @@ fn config_seeds() -> Result<Vec<Input>> {
         "tools/configs/no_loops.toml",
         "tools/configs/sim/exact_navigation.toml",
         "tools/configs/sim/exact_navigation_narrow_beam.toml",
+        "tools/configs/sim/flat_echo.toml",
         "datasets/samples/tank-seed1.sim.toml",
     ] {
         seeds.push(Input::single("config.toml", fixture(path)?));
