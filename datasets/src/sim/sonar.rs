@@ -449,16 +449,30 @@ mod tests {
     use super::*;
     use crate::sim::{EnvironmentBuilder, Material};
 
-    /// The echo energy in the bin centred at 10.05 m of one on-axis ray
-    /// that meets a concrete wall there at 60° incidence, without losses,
-    /// ghosts or tail in that bin (the tail starts one bin behind).
-    fn peak_at_60_degrees(config: SonarSimConfig) -> f64 {
-        let incidence = 60f64.to_radians();
-        let range = 10.05;
+    /// The bin in which the ray of [`peak_on_oblique_wall`] meets the wall.
+    const WALL_BIN: usize = 100;
+
+    /// The incidence of that ray on the wall, radians.
+    fn incidence() -> f64 {
+        60f64.to_radians()
+    }
+
+    /// The range at which the ray meets the wall, m: the centre of
+    /// [`WALL_BIN`], where a deposit's Gaussian peaks in full.
+    fn wall_range_m(config: &SonarSimConfig) -> f64 {
+        (WALL_BIN as f64 + 0.5) * config.bin_size_m
+    }
+
+    /// The echo energy in [`WALL_BIN`] of one on-axis ray that meets a
+    /// concrete wall at [`wall_range_m`] with [`incidence`], without
+    /// losses or ghosts (the vertical tail starts one bin behind).
+    fn peak_on_oblique_wall(config: SonarSimConfig) -> f64 {
+        let range = wall_range_m(&config);
         let mut b = EnvironmentBuilder::new();
-        // The wall y = d; a ray from the origin at 30° above x meets it at
-        // `range` with the given incidence to its normal (the y axis).
-        let d = range * incidence.cos();
+        // The wall y = d, whose normal is the y axis; a ray from the
+        // origin at the complement of the incidence above x meets it at
+        // `range`.
+        let d = range * incidence().cos();
         b.segment([-100.0, d], [100.0, d], Material::CONCRETE);
         let env = b.build("wall").unwrap();
         let model = SonarModel::new(&SonarSimConfig {
@@ -470,9 +484,9 @@ mod tests {
         })
         .unwrap();
         let mut echo = vec![0.0; model.config().bins];
-        let bearing = std::f64::consts::FRAC_PI_2 - incidence;
+        let bearing = std::f64::consts::FRAC_PI_2 - incidence();
         model.add_structure_echoes(&mut echo, &env, Point2::origin(), bearing);
-        echo[100]
+        echo[WALL_BIN]
     }
 
     #[test]
@@ -480,16 +494,17 @@ mod tests {
         let c = SonarSimConfig::default();
         let source = 10f64.powf(c.echo_snr_db / 10.0);
         let concrete = Material::CONCRETE;
-        // Default: the backscatter law at 60°, and the peak lowered by the
-        // footprint's spread r·w·tan α / 2 (one ray spans the whole width w).
+        // Default: the backscatter law at the incidence, and the peak
+        // lowered by the footprint's spread r·w·tan α / 2 (one ray spans
+        // the whole width w).
         let sigma0 = 0.5 * c.pulse_length_m;
-        let footprint = 0.5 * 10.05 * c.beam_width_rad * 60f64.to_radians().tan();
+        let footprint = 0.5 * wall_range_m(&c) * c.beam_width_rad * incidence().tan();
         let spread = sigma0 / (sigma0 * sigma0 + footprint * footprint).sqrt();
-        let want = source * echo::backscatter(&concrete, 60f64.to_radians()) * spread;
-        let got = peak_at_60_degrees(c.clone());
+        let want = source * echo::backscatter(&concrete, incidence()) * spread;
+        let got = peak_on_oblique_wall(c.clone());
         assert!((got / want - 1.0).abs() < 1e-9, "{got} against {want}");
         // Both off: the reflectivity alone, as at normal incidence.
-        let flat = peak_at_60_degrees(SonarSimConfig {
+        let flat = peak_on_oblique_wall(SonarSimConfig {
             backscatter_falls_with_incidence: false,
             footprint_lowers_peak: false,
             ..c
