@@ -29,6 +29,16 @@ and prints
   Against a noisy reference (the real mission's DGPS) the linearisation
   charges the reference's own noise to the edges: there the shares say
   less than on a simulated mission's exact truth.
+* with `--axes`, per edge class the scale of the measured translations
+  along the map's long and short axes (the principal axes of the true
+  positions): `Σ (e·u)(d·u) / Σ (d·u)²` over the class's edges, `d` the
+  true displacement and `e` the measurement's error, both in the world
+  frame, `u` the axis. Loops are split into those within one pass (the
+  true path between the two nodes at most `SAME_PASS_RATIO` times their
+  distance: the vehicle went straight from one to the other) and
+  revisits. A chain of edges whose scale along an axis is negative
+  shortens the map along it, whatever the edges' mean error along their
+  own displacements.
 
 The re-solve uses GTSAM (Levenberg-Marquardt, Cauchy kernel of
 c = 2.796 on the loop edges, heading priors as priors with free
@@ -48,6 +58,10 @@ from collections import Counter
 import numpy as np
 
 CLASSES = ("odometry", "sequential", "loop", "dense", "partial")
+
+# `--axes`: a loop whose nodes' true path is at most this many times their
+# straight distance lies within one pass.
+SAME_PASS_RATIO = 1.5
 
 
 def wrap(a):
@@ -144,6 +158,39 @@ def bias(edges, truth):
                 f"error along the displacement mean {a.mean():+.4f} m, "
                 f"median {np.median(a):+.4f} m, scale {100 * (a * n).sum() / (n * n).sum():+.3f} %"
             )
+
+
+def axes_scale(edges, truth):
+    """Per class the scale along the map's long and short axes (`--axes`)."""
+    centred = truth[:, :2] - truth[:, :2].mean(0)
+    _, axes = np.linalg.eigh(centred.T @ centred)
+    long_axis, short_axis = axes[:, 1], axes[:, 0]
+    steps = np.hypot(*np.diff(truth[:, :2], axis=0).T)
+    path = np.concatenate([[0.0], np.cumsum(steps)])
+    groups = {}
+    for k, i, j, z, _ in edges:
+        d = truth[j, :2] - truth[i, :2]
+        distance = np.linalg.norm(d)
+        if distance < 1e-3:
+            continue
+        c, s = math.cos(truth[i, 2]), math.sin(truth[i, 2])
+        e = np.array([c * z[0] - s * z[1], s * z[0] + c * z[1]]) - d
+        name = k
+        if k in ("loop", "dense", "partial"):
+            same = abs(path[j] - path[i]) <= SAME_PASS_RATIO * distance
+            name = f"{k} ({'one pass' if same else 'revisit'})"
+        groups.setdefault(name, []).append((d, e))
+    print(f"scale along the map's axes (loops within one pass: path at most {SAME_PASS_RATIO} x distance):")
+    names = [n for k in CLASSES for n in (k, f"{k} (one pass)", f"{k} (revisit)") if n in groups]
+    for name in names:
+        rows = groups[name]
+        d = np.array([r[0] for r in rows])
+        e = np.array([r[1] for r in rows])
+        scales = []
+        for u in (long_axis, short_axis):
+            du = d @ u
+            scales.append(100 * (e @ u) @ du / (du @ du))
+        print(f"  {name:<20} {len(rows):6d}: long axis {scales[0]:+.3f} %, short axis {scales[1]:+.3f} %")
 
 
 def solve(edges, priors, vertices, truth, exact, frame_rad):
@@ -268,6 +315,7 @@ def main():
         "--exact", default="", help="comma-separated: none or classes " + ", ".join(CLASSES + ("prior",))
     )
     ap.add_argument("--influence", type=int, metavar="N", help="per-class shares of the map's scale, N largest")
+    ap.add_argument("--axes", action="store_true", help="per class the scale along the map's long and short axes")
     args = ap.parse_args()
     trajectory, truth, edges, priors, vertices = read_run(args.out)
     print("as run: ATE %.3f m, scale %.4f, ATE after the scale %.3f m" % align(trajectory, truth))
@@ -279,6 +327,8 @@ def main():
             ap.error(f"--exact: unknown class {sorted(unknown)}")
         solved = solve(edges, priors, vertices, truth, exact, frame_rotation(trajectory, truth))
         print("exact %-24s ATE %.3f m, scale %.4f, ATE after the scale %.3f m" % ((group,) + align(solved, truth)))
+    if args.axes:
+        axes_scale(edges, truth)
     if args.influence is not None:
         influence(edges, priors, trajectory, truth, args.influence)
 
