@@ -38,7 +38,9 @@ and prints
   distance: the vehicle went straight from one to the other) and
   revisits. A chain of edges whose scale along an axis is negative
   shortens the map along it, whatever the edges' mean error along their
-  own displacements.
+  own displacements. A partial loop's measurement along its
+  unconstrained direction is the estimate's at the time it was made, so
+  its rows say what the estimate held there, not what a match measured.
 
 The re-solve uses GTSAM (Levenberg-Marquardt, Cauchy kernel of
 c = 2.796 on the loop edges, heading priors as priors with free
