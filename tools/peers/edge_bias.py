@@ -41,6 +41,9 @@ and prints
   own displacements. A partial loop's measurement along its
   unconstrained direction is the estimate's at the time it was made, so
   its rows say what the estimate held there, not what a match measured.
+  With a node spacing (nodes picked by the dead reckoning's own
+  displacement) the odometry row is biased low: an edge's error and its
+  true length are correlated by the selection.
 
 The re-solve uses GTSAM (Levenberg-Marquardt, Cauchy kernel of
 c = 2.796 on the loop edges, heading priors as priors with free
