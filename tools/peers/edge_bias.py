@@ -194,8 +194,9 @@ def axes_scale(edges, truth):
         scales = []
         for u in (long_axis, short_axis):
             du = d @ u
-            scales.append(100 * (e @ u) @ du / (du @ du))
-        print(f"  {name:<20} {len(rows):6d}: long axis {scales[0]:+.3f} %, short axis {scales[1]:+.3f} %")
+            # A class whose displacements are all across the axis says nothing along it.
+            scales.append(f"{100 * (e @ u) @ du / (du @ du):+.3f} %" if du @ du > 1e-9 else "n/a")
+        print(f"  {name:<20} {len(rows):6d}: long axis {scales[0]}, short axis {scales[1]}")
 
 
 def solve(edges, priors, vertices, truth, exact, frame_rad):
