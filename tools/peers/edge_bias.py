@@ -63,6 +63,9 @@ from collections import Counter
 import numpy as np
 
 CLASSES = ("odometry", "sequential", "loop", "dense", "partial")
+# The loop classes: a Cauchy kernel in the re-solve, and the one-pass /
+# revisit split of `--axes`.
+LOOP_CLASSES = ("loop", "dense", "partial")
 
 # `--axes`: a loop whose nodes' true path is at most this many times their
 # straight distance lies within one pass.
@@ -165,11 +168,17 @@ def bias(edges, truth):
             )
 
 
-def axes_scale(edges, truth):
-    """Per class the scale along the map's long and short axes (`--axes`)."""
+def principal_axes(truth):
+    """The long and short axes of the true positions: the columns of a
+    2x2 matrix, the long one first."""
     centred = truth[:, :2] - truth[:, :2].mean(0)
     _, axes = np.linalg.eigh(centred.T @ centred)
-    long_axis, short_axis = axes[:, 1], axes[:, 0]
+    return axes[:, ::-1]
+
+
+def axes_scale(edges, truth):
+    """Per class the scale along the map's long and short axes (`--axes`)."""
+    long_axis, short_axis = principal_axes(truth).T
     steps = np.hypot(*np.diff(truth[:, :2], axis=0).T)
     path = np.concatenate([[0.0], np.cumsum(steps)])
     groups = {}
@@ -181,7 +190,7 @@ def axes_scale(edges, truth):
         c, s = math.cos(truth[i, 2]), math.sin(truth[i, 2])
         e = np.array([c * z[0] - s * z[1], s * z[0] + c * z[1]]) - d
         name = k
-        if k in ("loop", "dense", "partial"):
+        if k in LOOP_CLASSES:
             same = abs(path[j] - path[i]) <= SAME_PASS_RATIO * distance
             name = f"{k} ({'one pass' if same else 'revisit'})"
         groups.setdefault(name, []).append((d, e))
@@ -217,7 +226,7 @@ def solve(edges, priors, vertices, truth, exact, frame_rad):
         if k in exact:
             z = relative(truth[i], truth[j])
         model = gtsam.noiseModel.Gaussian.Information(info)
-        if k in ("loop", "dense", "partial"):
+        if k in LOOP_CLASSES:
             model = gtsam.noiseModel.Robust.Create(cauchy, model)
         graph.add(gtsam.BetweenFactorPose2(i, j, gtsam.Pose2(*z), model))
     for i, theta, info in priors:
@@ -272,7 +281,7 @@ def influence(edges, priors, trajectory, truth, count):
         e = z - t
         e[2] = wrap(e[2])
         w = info
-        if k in ("loop", "dense", "partial"):
+        if k in LOOP_CLASSES:
             w = info / (1.0 + float(e @ info @ e) / 2.796**2)
         ja, jb = between_jacobians(truth[i], truth[j])
         a = np.hstack([ja, jb])
@@ -287,9 +296,8 @@ def influence(edges, priors, trajectory, truth, count):
     # u is the least-squares slope of the displacement's u component on
     # the position's u coordinate.
     centred = truth[:, :2] - truth[:, :2].mean(0)
-    _, axes = np.linalg.eigh(centred.T @ centred)
+    axes = principal_axes(truth)
     functionals = []
-    axes = axes[:, ::-1]
     for u in axes.T:
         c = centred @ u
         f = np.zeros(3 * n)
