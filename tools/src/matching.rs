@@ -17,6 +17,7 @@
 pub mod evaluation;
 pub mod navigation_eval;
 pub mod plots;
+pub mod pull;
 
 use crate::slam::SlamConfig;
 use anyhow::{Context, Result, bail};

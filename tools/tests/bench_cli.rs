@@ -84,6 +84,63 @@ fn bench_matcher_reports_on_a_mission_file() {
 }
 
 #[test]
+fn bench_matcher_writes_every_scan_point_at_the_truth() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("pull.csv");
+    let json = dir.path().join("trials.json");
+    on_sample(
+        "bench-matcher",
+        &[
+            "--trials",
+            "1",
+            "--max-pairs",
+            "3",
+            "--pull-at-truth",
+            csv.to_str().unwrap(),
+            "--json",
+            json.to_str().unwrap(),
+        ],
+    );
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(
+        lines.next(),
+        Some(
+            "scan,image,kind,displacement_m,scan_x_m,scan_y_m,rim_margin_m,value,\
+             slope_along_per_m,fine_slope_along_per_m"
+        )
+    );
+    // One row per scan point of every pair the trials evaluated, each pair
+    // with the displacement of its truth in the JSON.
+    let trials: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let mut truth_of = std::collections::BTreeMap::new();
+    for t in trials["evaluation"]["trials"].as_array().unwrap() {
+        let key = (t["scan"].as_u64().unwrap(), t["image"].as_u64().unwrap());
+        let xy = (
+            t["truth"][0].as_f64().unwrap(),
+            t["truth"][1].as_f64().unwrap(),
+        );
+        truth_of.insert(key, xy.0.hypot(xy.1));
+    }
+    let mut pairs = std::collections::BTreeSet::new();
+    for line in lines {
+        let f: Vec<&str> = line.split(',').collect();
+        assert_eq!(f.len(), 10, "{line}");
+        let key = (f[0].parse::<u64>().unwrap(), f[1].parse::<u64>().unwrap());
+        assert!(["consecutive", "non_consecutive"].contains(&f[2]), "{line}");
+        let d: f64 = f[3].parse().unwrap();
+        assert!((d - truth_of[&key]).abs() < 1e-9, "{line}");
+        // The sample's images have a reach: every point has a margin.
+        let margin: f64 = f[6].parse().unwrap();
+        let value: f64 = f[7].parse().unwrap();
+        assert!(margin.is_finite() && (0.0..=1.0).contains(&value), "{line}");
+        pairs.insert(key);
+    }
+    assert_eq!(pairs.len(), truth_of.len(), "{text}");
+}
+
+#[test]
 fn a_mission_without_ground_truth_is_refused_by_name() {
     let dir = tempfile::tempdir().unwrap();
     let mission = dir.path().join("ping360.mcap");

@@ -21,6 +21,11 @@ Examples:
   # The scans and images as the refining second pass of `run` builds them
   echofield bench-matcher --mission stpere-sim.mcap --navigation slam
 
+  # Every scan point at the true pose: what pulls the matches along their
+  # displacement (summarised by tools/peers/pull_at_truth.py)
+  echofield bench-matcher --mission marina.mcap --navigation ground-truth \
+      --trials 1 --max-pairs 400 --pull-at-truth pull.csv
+
 For every pair of overlapping rotations (consecutive and non-consecutive,
 at most --max-pairs of each, chosen with the seed among all pairs where at
 least half of the points of S_K lie within 0.5 m of S_J at the true pose,
@@ -101,10 +106,16 @@ pub struct Args {
     /// Also write every trial and the table as JSON.
     #[arg(long)]
     pub json: Option<PathBuf>,
+    /// Also write every scan point of every pair at the true pose as CSV:
+    /// its margin to the image's rim and the slope of the image along the
+    /// true displacement (what pulls the match; see
+    /// `tools/peers/pull_at_truth.py`).
+    #[arg(long)]
+    pub pull_at_truth: Option<PathBuf>,
 }
 
 pub fn run(args: Args) -> Result<()> {
-    super::prepare_output_files([args.json.as_ref()])?;
+    super::prepare_output_files([args.json.as_ref(), args.pull_at_truth.as_ref()])?;
     let config = match &args.config {
         Some(path) => SlamConfig::from_toml_file(path)?,
         None => SlamConfig::default(),
@@ -136,6 +147,7 @@ pub fn run(args: Args) -> Result<()> {
         max_initial_error_m: args.max_error_m,
         max_initial_error_rad: args.max_error_deg.to_radians(),
         seed: args.seed,
+        pull_at_truth: args.pull_at_truth.is_some(),
         ..TrialConfig::default()
     };
     let source = match &args.mission {
@@ -159,6 +171,16 @@ pub fn run(args: Args) -> Result<()> {
             path,
             (serde_json::to_string_pretty(&value)? + "\n").as_bytes(),
         )?;
+    }
+    if let Some(path) = &args.pull_at_truth {
+        let mut writer = csv::Writer::from_writer(Vec::new());
+        for row in &result.pulls {
+            writer.serialize(row)?;
+        }
+        let bytes = writer
+            .into_inner()
+            .map_err(|e| anyhow::anyhow!("writing {}: {}", path.display(), e.error()))?;
+        write_bytes_atomic(path, &bytes)?;
     }
     Ok(())
 }

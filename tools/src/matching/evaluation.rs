@@ -55,6 +55,7 @@
 //! missions, "What the short loops are").
 
 use super::MissionRotations;
+use super::pull::{PointPull, pull_at_truth};
 use crate::slam::SlamConfig;
 use anyhow::Result;
 use echofield_frontend::icp::{IcpConfig, icp, kdtree::KdTree};
@@ -103,6 +104,9 @@ pub struct TrialConfig {
     pub max_pairs_per_kind: usize,
     pub seed: u64,
     pub icp: IcpConfig,
+    /// Also keep every scan point's value and slope at the true pose
+    /// ([`Evaluation::pulls`], [`super::pull`]).
+    pub pull_at_truth: bool,
 }
 
 impl Default for TrialConfig {
@@ -120,6 +124,7 @@ impl Default for TrialConfig {
             max_pairs_per_kind: 60,
             seed: 1,
             icp: IcpConfig::default(),
+            pull_at_truth: false,
         }
     }
 }
@@ -222,6 +227,11 @@ pub struct Evaluation {
     pub overlapping_pairs: BTreeMap<String, usize>,
     pub chosen_pairs: Vec<Pair>,
     pub trials: Vec<Trial>,
+    /// Every scan point of every pair evaluated at the true pose, when
+    /// [`TrialConfig::pull_at_truth`] (not in the JSON: the command writes
+    /// them as CSV).
+    #[serde(skip)]
+    pub pulls: Vec<PointPull>,
 }
 
 /// Runs the evaluation on a mission with ground truth.
@@ -242,7 +252,7 @@ pub fn evaluate(
     let matchable: Vec<bool> = scans.iter().map(Option::is_some).collect();
     let (pairs, overlapping_pairs) =
         choose_pairs(&exact_scans, &truths, &matchable, eval, &mut rng);
-    let trials = run_trials(mission, config, eval, &scans, &truths, &pairs, &mut rng)?;
+    let (trials, pulls) = run_trials(mission, config, eval, &scans, &truths, &pairs, &mut rng)?;
     let mut pair_counts = BTreeMap::new();
     for pair in &pairs {
         *pair_counts.entry(format!("{:?}", pair.kind)).or_insert(0) += 1;
@@ -255,6 +265,7 @@ pub fn evaluate(
         overlapping_pairs,
         chosen_pairs: pairs,
         trials,
+        pulls,
     })
 }
 
@@ -287,9 +298,11 @@ fn trial_window(eval: &TrialConfig) -> SearchWindow {
 
 /// Runs `trials_per_pair` trials of both methods on every pair, in the
 /// order of `pairs` within each image (pairs are grouped by image so each
-/// image is built once). Precondition: every pair has ground truth at both
-/// rotations (as [`choose_pairs`] guarantees); pairs whose scan or image
-/// rotation has no scan with the evaluated navigation are skipped.
+/// image is built once), and, with [`TrialConfig::pull_at_truth`], every
+/// pair's scan points at the true pose. Precondition: every pair has ground
+/// truth at both rotations (as [`choose_pairs`] guarantees); pairs whose
+/// scan or image rotation has no scan with the evaluated navigation are
+/// skipped.
 fn run_trials(
     mission: &MissionRotations,
     config: &SlamConfig,
@@ -298,9 +311,10 @@ fn run_trials(
     truths: &[Option<Se2>],
     pairs: &[Pair],
     rng: &mut ChaCha8Rng,
-) -> Result<Vec<Trial>> {
+) -> Result<(Vec<Trial>, Vec<PointPull>)> {
     let window = trial_window(eval);
     let mut trials = Vec::new();
+    let mut pulls = Vec::new();
     let mut by_image: BTreeMap<usize, Vec<Pair>> = BTreeMap::new();
     for pair in pairs {
         by_image.entry(pair.image).or_default().push(*pair);
@@ -325,6 +339,10 @@ fn run_trials(
                 image: &image,
                 window: &window,
             };
+            if eval.pull_at_truth {
+                let key = (pair.scan, pair.image, pair.kind);
+                pulls.extend(pull_at_truth(context.source, &image, &context.truth, key));
+            }
             for _ in 0..eval.trials_per_pair {
                 let (prior, e_m, e_rad) = perturb(&context.truth, eval, rng);
                 let start = TrialStart {
@@ -337,7 +355,7 @@ fn run_trials(
             }
         }
     }
-    Ok(trials)
+    Ok((trials, pulls))
 }
 
 /// What the trials of one pair share.
@@ -987,6 +1005,7 @@ mod tests {
             overlapping_pairs: BTreeMap::new(),
             chosen_pairs: Vec::new(),
             trials,
+            pulls: Vec::new(),
         };
         let bias = evaluation
             .bias(PairKind::Consecutive, Method::AcousticImage)
