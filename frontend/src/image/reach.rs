@@ -87,6 +87,18 @@ impl Reach {
         })
     }
 
+    /// The reach of a full turn of beams of `range_m` metres from `centre`:
+    /// a disc, for images made without beams (rasters built in tests and
+    /// benchmarks) whose rim is known.
+    pub fn disc(centre: Point2<f64>, range_m: f64) -> Self {
+        let bins = (TAU / BIN_RAD).round() as usize;
+        Self {
+            centre,
+            rim_m: vec![range_m as f32; bins],
+            nearest_rim_m: range_m as f32,
+        }
+    }
+
     /// How far inside the rim `q` (image frame, metres) lies, measured
     /// along its bearing from the centre: negative outside the reach, and
     /// minus the distance from the centre where no beam reached that
@@ -184,6 +196,13 @@ mod tests {
             assert!((reach.margin(&at(40.0)) - 10.0).abs() < 1e-3);
             assert!((reach.margin(&at(52.0)) + 2.0).abs() < 1e-3);
         }
+    }
+
+    #[test]
+    fn a_disc_is_the_reach_of_a_full_turn_from_its_centre() {
+        let (beams, frames) = turn(720, (2.0, -1.0));
+        let turn = Reach::of_beams(&beams, &frames, None, 0.1).unwrap();
+        assert_eq!(Reach::disc(Point2::new(2.0, -1.0), 50.0), turn);
     }
 
     #[test]

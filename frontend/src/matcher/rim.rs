@@ -223,7 +223,6 @@ mod tests {
     use super::*;
     use crate::image::Grid;
     use crate::matcher::search::{SearchProblem, SearchStats};
-    use crate::sensors::SonarBeam;
 
     #[test]
     fn a_point_needs_the_translation_plus_the_rotation_times_its_range() {
@@ -258,20 +257,7 @@ mod tests {
                 grid.values_mut()[iy as usize * n + ix as usize] = quay.max(pier) as f32;
             }
         }
-        let (beams, frames): (Vec<SonarBeam>, Vec<Se2>) = (0..720)
-            .map(|j| {
-                let a = std::f64::consts::TAU * f64::from(j) / 720.0;
-                let beam = SonarBeam {
-                    stamp_s: 0.0,
-                    angle_rad: a,
-                    bin_size_m: 0.1,
-                    first_bin_range_m: 0.0,
-                    intensities: vec![0; (reach_m / 0.1).round() as usize],
-                };
-                (beam, Se2::new(0.0, 0.0, a))
-            })
-            .unzip();
-        let reach = Reach::of_beams(&beams, &frames, None, 0.1).unwrap();
+        let reach = Reach::disc(Point2::origin(), reach_m);
         (AcousticImage::from_grid(grid, 6), reach)
     }
 

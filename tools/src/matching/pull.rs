@@ -91,12 +91,11 @@ pub fn pull_at_truth(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use echofield_frontend::SonarBeam;
     use echofield_frontend::image::{Grid, Reach};
 
     /// A 20 m square image whose value rises by 0.02 per metre along x
-    /// (0.5 at the origin), with the reach of a full turn of 8 m beams
-    /// from the origin when `reach`.
+    /// (0.5 at the origin), with the reach of 8 m beams all round the
+    /// origin when `reach`.
     fn ramp_image(reach: bool) -> AcousticImage {
         let (cell, n) = (0.1, 200);
         let mut grid = Grid::zeros(-10.0, -10.0, cell, n, n);
@@ -108,20 +107,7 @@ mod tests {
         if !reach {
             return image;
         }
-        let (beams, frames): (Vec<SonarBeam>, Vec<Se2>) = (0..720)
-            .map(|j| {
-                let a = std::f64::consts::TAU * f64::from(j) / 720.0;
-                let beam = SonarBeam {
-                    stamp_s: 0.0,
-                    angle_rad: a,
-                    bin_size_m: 0.1,
-                    first_bin_range_m: 0.0,
-                    intensities: vec![0; 80],
-                };
-                (beam, Se2::new(0.0, 0.0, a))
-            })
-            .unzip();
-        image.with_reach(Reach::of_beams(&beams, &frames, None, 0.1).expect("beams reach"))
+        image.with_reach(Reach::disc(Point2::origin(), 8.0))
     }
 
     #[test]
