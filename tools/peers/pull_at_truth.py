@@ -15,7 +15,7 @@ Negative sums pull the scan towards the image's centre (a shorter
 displacement), positive ones away from it. Each cell is the mean over the
 pairs with its standard error (a pair's sum is dominated by its walls'
 noise: only a mean several standard errors from 0 is a pull), for the
-search raster and for the finest image.
+search raster and for the image interpolated from the samples ("fine").
 
     python3 tools/peers/pull_at_truth.py pull.csv [--bands 0,3,10,25,60]
 

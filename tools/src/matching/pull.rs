@@ -7,7 +7,7 @@
 //! points it says which way the score would move the scan from the truth:
 //! negative towards the image's centre (a shorter displacement), positive
 //! away from it. Each point's term is kept with its margin to the rim of
-//! the image's reach ([`crate::matching`]'s images carry one), so that the
+//! the image's reach (the images built from beams have one), so that the
 //! pull of the rim (points that a longer displacement carries out of the
 //! image, where `I` is 0) can be told from the pull of the walls inside.
 //!
@@ -15,10 +15,12 @@
 //! covariance fit and the pose fit, and one pair's sum is dominated by its
 //! walls' noise. Averages over hundreds of pairs, with their standard
 //! errors (`tools/peers/pull_at_truth.py`), are what tell a pull from
-//! noise. Both images a match reads are reported: the search raster
+//! noise. Two of the images a match reads are reported: the search raster
 //! ([`AcousticImage::value_and_gradient`], which the lattice search and the
-//! covariance fit read) and the finest one
-//! ([`AcousticImage::fine_value_and_gradient`]).
+//! covariance fit read) and the image interpolated from the samples
+//! ([`AcousticImage::fine_value_and_gradient`], eq. (5)'s
+//! [`echofield_frontend::matcher::score`], which the match's quality
+//! reads). The pose fit's own raster is not.
 
 use super::evaluation::PairKind;
 use echofield_frontend::image::AcousticImage;
@@ -46,7 +48,7 @@ pub struct PointPull {
     pub value: f64,
     /// `∇I(x* ⊕ p) · u` of the search raster, 1/m.
     pub slope_along_per_m: f64,
-    /// `∇I(x* ⊕ p) · u` of the finest image, 1/m.
+    /// `∇I(x* ⊕ p) · u` of the image interpolated from the samples, 1/m.
     pub fine_slope_along_per_m: f64,
 }
 
