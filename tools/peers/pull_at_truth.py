@@ -17,7 +17,7 @@ pairs with its standard error (a pair's sum is dominated by its walls'
 noise: only a mean several standard errors from 0 is a pull), for the
 search raster and for the image interpolated from the samples ("fine").
 
-    python3 tools/peers/pull_at_truth.py pull.csv [--bands 0,3,10,25,60]
+    python3 tools/peers/pull_at_truth.py pull.csv [--bands 0,3,10,25,1000]
 
 Only the standard library; no venv needed.
 """

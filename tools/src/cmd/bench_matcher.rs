@@ -4,7 +4,7 @@
 use anyhow::{Context, Result};
 use echofield::matching::MissionRotations;
 use echofield::matching::evaluation::{TrialConfig, evaluate};
-use echofield::output::write_bytes_atomic;
+use echofield::output::{write_atomic, write_bytes_atomic};
 use echofield::slam::SlamConfig;
 use echofield_datasets::sim::{Scenario, simulate_mission};
 use std::path::PathBuf;
@@ -173,14 +173,13 @@ pub fn run(args: Args) -> Result<()> {
         )?;
     }
     if let Some(path) = &args.pull_at_truth {
-        let mut writer = csv::Writer::from_writer(Vec::new());
-        for row in &result.pulls {
-            writer.serialize(row)?;
-        }
-        let bytes = writer
-            .into_inner()
-            .map_err(|e| anyhow::anyhow!("writing {}: {}", path.display(), e.error()))?;
-        write_bytes_atomic(path, &bytes)?;
+        write_atomic(path, |w| {
+            let mut writer = csv::Writer::from_writer(w);
+            for row in &result.pulls {
+                writer.serialize(row)?;
+            }
+            Ok(writer.flush()?)
+        })?;
     }
     Ok(())
 }

@@ -68,6 +68,7 @@ pub fn pull_at_truth(
         return Vec::new();
     }
     let u = t / displacement_m;
+    let reach = image.reach();
     points
         .iter()
         .map(|p| {
@@ -81,7 +82,7 @@ pub fn pull_at_truth(
                 displacement_m,
                 scan_x_m: p.x,
                 scan_y_m: p.y,
-                rim_margin_m: image.reach().map(|r| r.margin(&q)),
+                rim_margin_m: reach.map(|r| r.margin(&q)),
                 value,
                 slope_along_per_m: gradient.dot(&u),
                 fine_slope_along_per_m: fine_gradient.dot(&u),
@@ -95,21 +96,28 @@ mod tests {
     use super::*;
     use echofield_frontend::image::{Grid, Reach};
 
-    /// A 20 m square image whose value rises by 0.02 per metre along x
-    /// (0.5 at the origin), with the reach of 8 m beams all round the
-    /// origin when `reach`.
+    /// Slope of [`ramp_image`] along x, 1/m.
+    const RAMP_PER_M: f64 = 0.02;
+    /// Radius of [`ramp_image`]'s reach, metres.
+    const RIM_M: f64 = 8.0;
+
+    /// An image whose value is `0.5 + RAMP_PER_M · x` over a square
+    /// centred on the origin (larger than every point the tests place),
+    /// with the reach of beams of `RIM_M` all round the origin when
+    /// `reach`.
     fn ramp_image(reach: bool) -> AcousticImage {
         let (cell, n) = (0.1, 200);
-        let mut grid = Grid::zeros(-10.0, -10.0, cell, n, n);
+        let half_m = 0.5 * cell * n as f64;
+        let mut grid = Grid::zeros(-half_m, -half_m, cell, n, n);
         for (k, v) in grid.values_mut().iter_mut().enumerate() {
-            let x = -10.0 + ((k % n) as f64 + 0.5) * cell;
-            *v = (0.5 + 0.02 * x) as f32;
+            let x = -half_m + ((k % n) as f64 + 0.5) * cell;
+            *v = (0.5 + RAMP_PER_M * x) as f32;
         }
         let image = AcousticImage::from_grid(grid, 0);
         if !reach {
             return image;
         }
-        image.with_reach(Reach::disc(Point2::origin(), 8.0))
+        image.with_reach(Reach::disc(Point2::origin(), RIM_M))
     }
 
     #[test]
@@ -122,9 +130,12 @@ mod tests {
         let along_x = pull_at_truth(&points, &image, &Se2::new(1.0, 0.0, 0.0), key);
         assert_eq!(along_x.len(), 2);
         for (row, x) in along_x.iter().zip([2.0, 1.0]) {
-            assert!((row.slope_along_per_m - 0.02).abs() < 1e-4, "{row:?}");
-            assert!((row.fine_slope_along_per_m - 0.02).abs() < 1e-4, "{row:?}");
-            assert!((row.value - (0.5 + 0.02 * x)).abs() < 1e-4, "{row:?}");
+            assert!((row.slope_along_per_m - RAMP_PER_M).abs() < 1e-4, "{row:?}");
+            assert!(
+                (row.fine_slope_along_per_m - RAMP_PER_M).abs() < 1e-4,
+                "{row:?}"
+            );
+            assert!((row.value - (0.5 + RAMP_PER_M * x)).abs() < 1e-4, "{row:?}");
             assert!((row.displacement_m - 1.0).abs() < 1e-12);
             assert_eq!(row.rim_margin_m, None);
             assert_eq!((row.scan, row.image, row.kind), key);
@@ -133,7 +144,7 @@ mod tests {
         let back = pull_at_truth(&points, &image, &Se2::new(-2.0, 0.0, 0.0), key);
         assert!(
             back.iter()
-                .all(|r| (r.slope_along_per_m + 0.02).abs() < 1e-4)
+                .all(|r| (r.slope_along_per_m + RAMP_PER_M).abs() < 1e-4)
         );
         let across = pull_at_truth(&points, &image, &Se2::new(0.0, 1.5, 0.0), key);
         assert!(across.iter().all(|r| r.slope_along_per_m.abs() < 1e-4));
@@ -144,8 +155,8 @@ mod tests {
     #[test]
     fn the_margin_is_to_the_rim_where_the_truth_puts_the_point() {
         let image = ramp_image(true);
-        // The truth puts the points at (3, 0) and (2, 9): 5 m inside the
-        // 8 m rim, and 1.2 m outside it.
+        // The truth puts the points at (3, 0) and (2, 9): inside the rim
+        // and outside it.
         let points = [Point2::new(1.0, 0.0), Point2::new(0.0, 9.0)];
         let rows = pull_at_truth(
             &points,
@@ -157,8 +168,9 @@ mod tests {
             .iter()
             .map(|r| r.rim_margin_m.expect("a reach"))
             .collect();
-        let outside = 8.0 - 2.0_f64.hypot(9.0);
-        assert!((margins[0] - 5.0).abs() < 0.05, "{margins:?}");
+        let outside = RIM_M - 2.0_f64.hypot(9.0);
+        assert!(outside < 0.0);
+        assert!((margins[0] - (RIM_M - 3.0)).abs() < 0.05, "{margins:?}");
         assert!((margins[1] - outside).abs() < 0.05, "{margins:?}");
     }
 
