@@ -52,6 +52,25 @@ fn bench_dead_reckoning_reports_on_a_mission_file() {
     assert!(ate > 0.0 && ate < 2.0, "{out}");
     // No map of the walls for a mission file.
     assert!(!out.contains("near walls"), "{out}");
+    // The three worst rotations, the first of them the largest motion
+    // error of the distortion line.
+    let worst = out
+        .lines()
+        .find(|l| l.starts_with("worst rotations (motion over the rotation): "))
+        .unwrap_or_else(|| panic!("{out}"));
+    assert_eq!(worst.matches("rotation ").count(), 3, "{worst}");
+    let largest = number_after(worst, " s ");
+    let distortion = out
+        .lines()
+        .find(|l| l.starts_with("distortion over"))
+        .unwrap_or_else(|| panic!("{out}"));
+    let max_motion = distortion
+        .rsplit("max ")
+        .next()
+        .and_then(|t| t.split(' ').next())
+        .and_then(|t| t.parse::<f64>().ok())
+        .unwrap_or_else(|| panic!("{distortion}"));
+    assert_eq!(largest, max_motion, "{worst} / {distortion}");
 
     // With --slam, also the distortion along a SLAM run's trajectory.
     let out = on_sample("bench-dead-reckoning", &["--slam"]);

@@ -32,9 +32,11 @@ Examples:
 For simulated missions and mission files with beams and ground truth it
 prints the distortion of the rotations: the distance between the
 dead-reckoning and the exact motion compensation of the point 5 m along
-every beam, and the error of the motion over each rotation (rotations
-outside the dead reckoning's span, such as those of the St Pere replay
-before its first DVL sample, are left out); for built-in scenarios the
+every beam, and the error of the motion over each rotation, with the three
+rotations where it is largest (their index and start after the first beam:
+a start, a stop or a slowing turn that the motion model follows badly).
+Rotations outside the dead reckoning's span, such as those of the St Pere
+replay before its first DVL sample, are left out. For built-in scenarios the
 fraction of scan points within 0.1 / 0.3 / 1 m of the environment's walls
 (dead reckoning, and exact compensation for reference); and for every
 mission the trajectory error at the ground-truth stamps (ATE RMSE after
@@ -164,6 +166,20 @@ fn print_distortion(label: &str, d: &Distortion) {
         d.rotation_motion_deg.p90,
         d.rotation_motion_m.max,
         d.rotation_motion_deg.max
+    );
+    let worst: Vec<String> = d
+        .worst
+        .iter()
+        .map(|w| {
+            format!(
+                "rotation {} at {:.1} s {:.3} m / {:.2}°",
+                w.index, w.start_s, w.translation_m, w.heading_deg
+            )
+        })
+        .collect();
+    println!(
+        "worst rotations{label} (motion over the rotation): {}",
+        worst.join("; ")
     );
 }
 

@@ -67,6 +67,40 @@ pub struct Distortion {
     /// Error of the motion from the first to the last beam of each rotation.
     pub rotation_motion_m: Spread,
     pub rotation_motion_deg: Spread,
+    /// The [`WORST_ROTATIONS`] rotations whose motion errs most
+    /// (translation), worst first: where a motion model fails (a start, a
+    /// stop, a turn that slows the vehicle) hides in the median.
+    pub worst: Vec<RotationMotionError>,
+}
+
+/// How many rotations [`Distortion::worst`] lists.
+pub const WORST_ROTATIONS: usize = 3;
+
+/// The error of the dead-reckoning motion over one rotation (first to
+/// last beam) against the ground truth's.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct RotationMotionError {
+    /// [`Rotation::index`].
+    pub index: usize,
+    /// Stamp of the rotation's first beam after the mission's first beam, s.
+    pub start_s: f64,
+    /// Translation error, m.
+    pub translation_m: f64,
+    /// Absolute heading error, degrees.
+    pub heading_deg: f64,
+}
+
+/// The `n` largest translation errors of `errors`, largest first (ties:
+/// the earlier rotation first).
+pub fn worst_rotations(errors: &[RotationMotionError], n: usize) -> Vec<RotationMotionError> {
+    let mut sorted = errors.to_vec();
+    sorted.sort_by(|a, b| {
+        b.translation_m
+            .total_cmp(&a.translation_m)
+            .then(a.index.cmp(&b.index))
+    });
+    sorted.truncate(n);
+    sorted
 }
 
 /// Fractions of scan points within 0.1, 0.3 and 1 m of the environment.
@@ -105,8 +139,8 @@ pub fn distortion(
     nav: &Navigation,
     truth: &Navigation,
 ) -> Result<Distortion> {
-    let (mut points, mut motion_m, mut motion_deg) = (Vec::new(), Vec::new(), Vec::new());
-    let mut used = 0;
+    let (mut points, mut motions) = (Vec::new(), Vec::new());
+    let first_beam_s = mission.beams.first().map_or(0.0, |b| b.stamp_s);
     for rotation in rotations {
         let beams = &mission.beams[rotation.beams.clone()];
         let t_ref = rotation.reference_stamp_s;
@@ -116,7 +150,6 @@ pub fn distortion(
         ) else {
             continue; // outside the navigation or the ground truth
         };
-        used += 1;
         for (a, b) in dr.iter().zip(&exact) {
             let (pa, pb) = (a.transform_xy(5.0, 0.0), b.transform_xy(5.0, 0.0));
             points.push((pa.0 - pb.0).hypot(pa.1 - pb.1));
@@ -125,15 +158,22 @@ pub fn distortion(
         let (estimate, _) = nav.relative(first, last)?;
         let (reference, _) = truth.relative(first, last)?;
         let e = reference.between(&estimate);
-        motion_m.push(e.translation().norm());
-        motion_deg.push(e.theta().abs().to_degrees());
+        motions.push(RotationMotionError {
+            index: rotation.index,
+            start_s: first - first_beam_s,
+            translation_m: e.translation().norm(),
+            heading_deg: e.theta().abs().to_degrees(),
+        });
     }
     let spread = |v: &[f64]| Spread::of(v).context("no rotation inside the navigation span");
+    let motion_m: Vec<f64> = motions.iter().map(|m| m.translation_m).collect();
+    let motion_deg: Vec<f64> = motions.iter().map(|m| m.heading_deg).collect();
     Ok(Distortion {
-        rotations: used,
+        rotations: motions.len(),
         point_5m_m: spread(&points)?,
         rotation_motion_m: spread(&motion_m)?,
         rotation_motion_deg: spread(&motion_deg)?,
+        worst: worst_rotations(&motions, WORST_ROTATIONS),
     })
 }
 
@@ -222,5 +262,28 @@ mod tests {
         let s = Spread::of(&values).unwrap();
         assert_eq!((s.median, s.p90, s.max), (5.0, 9.0, 10.0));
         assert!(Spread::of(&[]).is_none());
+    }
+
+    #[test]
+    fn worst_rotations_are_the_largest_translation_errors_first() {
+        let error = |index: usize, translation_m: f64| RotationMotionError {
+            index,
+            start_s: 14.0 * index as f64,
+            translation_m,
+            heading_deg: 0.1,
+        };
+        let errors = [
+            error(0, 1.5),
+            error(1, 0.2),
+            error(2, 3.2),
+            error(3, 0.2),
+            error(4, 1.5),
+        ];
+        let worst = worst_rotations(&errors, 3);
+        let order: Vec<usize> = worst.iter().map(|w| w.index).collect();
+        // 3.2 m first; the two 1.5 m rotations in rotation order.
+        assert_eq!(order, [2, 0, 4]);
+        assert_eq!(worst_rotations(&errors[..2], 3).len(), 2);
+        assert!(worst_rotations(&[], 3).is_empty());
     }
 }
