@@ -64,12 +64,11 @@ fn bench_dead_reckoning_reports_on_a_mission_file() {
         .lines()
         .find(|l| l.starts_with("distortion over"))
         .unwrap_or_else(|| panic!("{out}"));
-    let max_motion = distortion
-        .rsplit("max ")
-        .next()
-        .and_then(|t| t.split(' ').next())
-        .and_then(|t| t.parse::<f64>().ok())
+    // The line's last "max" is the motion's.
+    let last_max = distortion
+        .rfind("max ")
         .unwrap_or_else(|| panic!("{distortion}"));
+    let max_motion = number_after(&distortion[last_max..], "max ");
     assert_eq!(largest, max_motion, "{worst} / {distortion}");
 
     // With --slam, also the distortion along a SLAM run's trajectory.

@@ -35,8 +35,9 @@ dead-reckoning and the exact motion compensation of the point 5 m along
 every beam, and the error of the motion over each rotation, with the three
 rotations where it is largest, by index and start after the first beam (a
 start, a stop or a turn that slows the vehicle, which a motion model can
-follow badly, shows there and not in the median). Rotations outside the dead reckoning's span, such as those of the St Pere
-replay before its first DVL sample, are left out. For built-in scenarios the
+follow badly, shows there and not in the median). Rotations outside the
+dead reckoning's span, such as those of the St Pere replay before its
+first DVL sample, are left out. For built-in scenarios the
 fraction of scan points within 0.1 / 0.3 / 1 m of the environment's walls
 (dead reckoning, and exact compensation for reference); and for every
 mission the trajectory error at the ground-truth stamps (ATE RMSE after
