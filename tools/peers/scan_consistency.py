@@ -46,6 +46,7 @@ import argparse
 import base64
 import json
 import math
+import os
 import sys
 
 import numpy as np
@@ -180,6 +181,9 @@ def main():
     parser.add_argument("--cell", type=float, default=0.05, help="raster cell, metres")
     parser.add_argument("--floor", type=float, default=0.05, help="ε: the score of a point with nothing near it")
     args = parser.parse_args()
+    for name in ("trajectory_tum.txt", "ground_truth_tum.txt", "mission.mcap"):
+        if not os.path.isfile(f"{args.out}/{name}"):
+            sys.exit(f"{args.out}: no {name} (an `echofield run` folder of a mission with ground truth)")
 
     stamps, run = tum(f"{args.out}/trajectory_tum.txt")
     gt_stamps, gt = tum(f"{args.out}/ground_truth_tum.txt")
