@@ -89,10 +89,16 @@ def relative(a, b):
     return np.array([c * dx + s * dy, -s * dx + c * dy, wrap(b[2] - a[2])])
 
 
+def truth_at(out, stamps):
+    """The ground-truth pose (x, y, yaw) of each of `stamps`: the sample of
+    `ground_truth_tum.txt` nearest in time."""
+    gt_stamps, gt = tum(f"{out}/ground_truth_tum.txt")
+    return gt[[int(np.argmin(abs(gt_stamps - t))) for t in stamps]]
+
+
 def read_run(out):
     stamps, trajectory = tum(f"{out}/trajectory_tum.txt")
-    gt_stamps, gt = tum(f"{out}/ground_truth_tum.txt")
-    truth = gt[[int(np.argmin(abs(gt_stamps - t))) for t in stamps]]
+    truth = truth_at(out, stamps)
     kind_of = {}
     with open(f"{out}/loops.csv") as f:
         for r in csv.DictReader(f):

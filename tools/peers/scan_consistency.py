@@ -21,7 +21,7 @@ nothing near it. It prints, for the run's poses and for the truth:
 
 * `C` at the poses and with the positions scaled about their mean by
   0.99 … 1.01 (does the score see a map that is too small or too large?);
-* after `--iterations` relaxations, each moving every node at once to
+* after each of `--iterations` relaxations, each moving every node at once to
   the local maximum of its own term of `C` (a pattern search of 0.2 m /
   0.5° steps halved down to 0.025 m / 0.05°, the others held): the ATE
   (SE(2) alignment), the map scale (least squares of the aligned truth
@@ -51,7 +51,7 @@ import sys
 
 import numpy as np
 
-from edge_bias import align, frame_rotation, tum, wrap
+from edge_bias import align, frame_rotation, truth_at, tum, wrap
 
 
 def read_scans(out, stamps):
@@ -130,7 +130,7 @@ def node_term(density, k, pose, scans, norm, floor):
 def climb(density, k, pose, scans, norm, floor):
     """Node k's pose at the local maximum of its term, by a pattern search
     over the 26 neighbours of the pose at each of `STEPS` (at most 20
-    moves per step), and the term there."""
+    moves per step)."""
     best = pose.copy()
     score = node_term(density, k, best, scans, norm, floor)
     for step_m, step_rad in STEPS:
@@ -186,8 +186,7 @@ def main():
             sys.exit(f"{args.out}: no {name} (an `echofield run` folder of a mission with ground truth)")
 
     stamps, run = tum(f"{args.out}/trajectory_tum.txt")
-    gt_stamps, gt = tum(f"{args.out}/ground_truth_tum.txt")
-    truth = gt[[int(np.argmin(abs(gt_stamps - t))) for t in stamps]]
+    truth = truth_at(args.out, stamps)
     scans = read_scans(args.out, stamps)
     # The truth in the run's frame (positions aligned as `align` does).
     th = frame_rotation(run, truth)
@@ -197,22 +196,21 @@ def main():
     print(f"{len(run)} nodes, {sum(len(s) for s in scans)} scan points; exclude ±{args.exclude}, sigma {args.sigma} m")
 
     for name, start in (("run", run), ("truth", truth_in_run)):
+        # Each configuration's C is computed once: the pass that relaxes
+        # a configuration also scores it.
+        c, poses = consistency(start, scans, args, relax=args.iterations > 0)
+        scaled = {1.0: c}
         mean = start[:, :2].mean(0)
-        scaled = []
-        for s in (0.99, 0.995, 1.0, 1.005, 1.01):
+        for s in (0.99, 0.995, 1.005, 1.01):
             p = start.copy()
             p[:, :2] = mean + s * (start[:, :2] - mean)
-            scaled.append(f"{s}: {consistency(p, scans, args)[0]:.1f}")
-        print(f"{name}: C with the positions scaled by " + ", ".join(scaled))
-        poses = start
-        for it in range(args.iterations):
-            before, poses = consistency(poses, scans, args, relax=True)
+            scaled[s] = consistency(p, scans, args)[0]
+        print(f"{name}: C with the positions scaled by " + ", ".join(f"{s}: {scaled[s]:.1f}" for s in sorted(scaled)))
+        for it in range(1, args.iterations + 1):
+            c, moved = consistency(poses, scans, args, relax=it < args.iterations)
             ate, scale, _ = align(poses, truth)
-            print(f"  {name} relaxed {it + 1}: ATE {ate:.3f} m, scale {scale:.4f} (C before it {before:.1f})")
-        final = consistency(poses, scans, args)[0]
-        ate, scale, _ = align(poses, truth)
-        print(f"{name} relaxed: ATE {ate:.3f} m, scale {scale:.4f}, C {final:.1f}")
-
+            print(f"  {name} relaxed {it}: ATE {ate:.3f} m, scale {scale:.4f}, C {c:.1f}")
+            poses = moved
 
 if __name__ == "__main__":
     main()
